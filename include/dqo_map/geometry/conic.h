@@ -1,0 +1,44 @@
+#pragma once
+// Projection of a dual quadric into an image: the dual conic C* = P Q* Pᵀ and its bounding box.
+//
+// The box is closed form: a vertical line x = u, l = (1, 0, −u), is tangent to the conic iff
+// lᵀ C* l = 0, i.e. C*₂₂ u² − 2 C*₀₂ u + C*₀₀ = 0, u = (C*₀₂ ± sqrt(C*₀₂² − C*₀₀ C*₂₂)) / C*₂₂;
+// the same with C*₁₂, C*₁₁ for horizontal lines.
+
+#include <optional>
+
+#include <Eigen/Core>
+
+#include "dqo_map/geometry/box2d.h"
+#include "dqo_map/geometry/dual_quadric.h"
+#include "dqo_map/geometry/pinhole_camera.h"
+#include "dqo_map/geometry/se3.h"
+
+namespace dqo {
+
+// C* = P Q* Pᵀ with Q* = quadric.matrix() (scale fixed by Q*(3,3) = −1).
+Eigen::Matrix3d project_quadric(const DualQuadric& quadric, const Eigen::Matrix<double, 3, 4>& P);
+
+// The bounding box of the conic. C* must carry the scale of project_quadric (Q*(3,3) = −1, any
+// scale of P): then C*₂₂ = p₃ᵀ Q* p₃ is negative exactly when the camera plane (third row p₃ of P)
+// misses the ellipsoid. nullopt when C* is not finite, C*₂₂ >= −eps (the ellipsoid straddles or
+// touches the camera plane, so its image is unbounded) or a discriminant is negative. An ellipsoid
+// wholly behind the camera also gives a box here: in_front_of_camera tells the two apart.
+std::optional<Box2d> conic_bounding_box(const Eigen::Matrix3d& Cstar);
+
+// True when every point of the ellipsoid has camera depth > near: with r₃ the optical axis in world
+// (third row of R_cw) and S the shape matrix, the smallest depth is z_c(centre) − sqrt(r₃ᵀ S r₃).
+bool in_front_of_camera(const DualQuadric& quadric, const SE3& T_cw, double near = 0.0);
+
+struct ProjectedBox {
+  Box2d box;                       // clipped to the image; empty when wholly outside it
+  Box2d unclipped;                 // the conic's box
+  double fraction_in_image = 0.0;  // area(box) / area(unclipped), for the "≥ 30 % in image" rule
+};
+
+// The object's box in an image: nullopt when the ellipsoid is not wholly in front of the camera
+// (depth > near) or its conic has no bounded box.
+std::optional<ProjectedBox> projected_box(const DualQuadric& quadric, const PinholeCamera& camera,
+                                          const SE3& T_cw, double near = 0.0);
+
+}  // namespace dqo

@@ -1,0 +1,129 @@
+// Reader of the Replica layout used by NICE-SLAM (rules in dataset_reader.h).
+#include <cstdio>
+#include <filesystem>
+#include <system_error>
+
+#include "camera_yaml.h"
+#include "dataset_reader_util.h"
+#include "dqo_map/io/dataset_reader.h"
+#include "dqo_map/io/image_io.h"
+#include "text_util.h"
+
+namespace dqo {
+
+namespace fs = std::filesystem;
+using io_detail::fail;
+using io_detail::LineFields;
+using io_detail::TextLine;
+
+namespace {
+
+constexpr double kReplicaDepthScale = 6553.5;
+
+std::string numbered(const char* prefix, int i, const char* extension) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%s%06d.%s", prefix, i, extension);
+  return buffer;
+}
+
+class ReplicaDatasetReader : public DatasetReader {
+ public:
+  const DatasetInfo& info() const override { return info_; }
+  int num_frames() const override { return static_cast<int>(poses_.size()); }
+  std::string format() const override { return "replica"; }
+  const std::string& dir() const override { return dir_; }
+
+  std::optional<Frame> read_frame(int i, std::string* error) const override {
+    if (i < 0 || i >= num_frames()) {
+      fail(error, dir_ + ": frame " + std::to_string(i) + " out of range [0, " +
+                      std::to_string(num_frames()) + ")");
+      return std::nullopt;
+    }
+    Frame frame;
+    frame.index = i;
+    frame.timestamp = i * frame_period_;
+    frame.T_wc = poses_[i];
+    frame.has_pose = true;
+    const std::string rgb_path = dir_ + "/results/" + numbered("frame", i, "jpg");
+    const std::string depth_path = dir_ + "/results/" + numbered("depth", i, "png");
+    auto rgb = read_rgb_image(rgb_path, error);
+    if (!rgb || !io_detail::check_image_size(rgb_path, *rgb, info_.camera, error)) {
+      return std::nullopt;
+    }
+    frame.rgb = std::move(*rgb);
+    auto depth = read_png_u16(depth_path, error);
+    if (!depth || !io_detail::check_image_size(depth_path, *depth, info_.camera, error)) {
+      return std::nullopt;
+    }
+    frame.depth = depth_from_u16(*depth, info_.depth_scale);
+    return frame;
+  }
+
+  bool open(const std::string& dir, const ReplicaReaderParams& params, std::string* error) {
+    dir_ = dir;
+    frame_period_ = params.frame_period;
+    std::error_code ec;
+    // NICE-SLAM keeps one cam_params.json for all scenes, in the folder above them.
+    std::string cam_path = dir + "/cam_params.json";
+    if (!fs::exists(cam_path, ec)) {
+      const fs::path parent = fs::absolute(dir, ec).lexically_normal().parent_path();
+      const std::string above = (parent / "cam_params.json").string();
+      if (!fs::exists(above, ec)) {
+        return fail(error, cam_path + ": missing (looked here and at " + above + ")");
+      }
+      cam_path = above;
+    }
+    info_.depth_scale = kReplicaDepthScale;
+    if (!io_detail::read_replica_cam_params(cam_path, &info_.camera, &info_.depth_scale,
+                                            error)) {
+      return false;
+    }
+    if (!fs::is_directory(dir + "/results", ec)) {
+      return fail(error, dir + "/results: folder missing");
+    }
+    return read_trajectory(dir + "/traj.txt", error);
+  }
+
+ private:
+  bool read_trajectory(const std::string& path, std::string* error) {
+    std::vector<TextLine> lines;
+    if (!io_detail::read_text_lines(path, &lines, error)) return false;
+    for (const TextLine& line : lines) {
+      const LineFields f(path, line, error);
+      if (!f.count(16, 16, "a 4x4 camera-to-world matrix, row-major")) return false;
+      Eigen::Matrix4d T;
+      for (int k = 0; k < 16; ++k) {
+        const std::string name = "m" + std::to_string(k / 4) + std::to_string(k % 4);
+        if (!f.number(k, name.c_str(), &T(k / 4, k % 4))) return false;
+      }
+      if ((T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6) {
+        return f.error("bottom row is not 0 0 0 1");
+      }
+      const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+      if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-4 ||
+          R.determinant() < 0.0) {
+        return f.error("top-left 3x3 block is not a rotation");
+      }
+      poses_.push_back(SE3::from_matrix(T));
+    }
+    return true;
+  }
+
+  std::string dir_;
+  DatasetInfo info_;
+  std::vector<SE3> poses_;  // line i of traj.txt is frame i
+  double frame_period_ = 1.0 / 30.0;
+};
+
+}  // namespace
+
+std::unique_ptr<DatasetReader> open_replica_dataset(const std::string& dir,
+                                                    const ReplicaReaderParams& params,
+                                                    std::string* error) {
+  if (!io_detail::check_dataset_dir(dir, error)) return nullptr;
+  auto reader = std::make_unique<ReplicaDatasetReader>();
+  if (!reader->open(dir, params, error)) return nullptr;
+  return reader;
+}
+
+}  // namespace dqo

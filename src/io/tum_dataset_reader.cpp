@@ -1,0 +1,150 @@
+// Reader of TUM RGB-D sequences (rules in dataset_reader.h).
+#include <algorithm>
+#include <filesystem>
+#include <system_error>
+
+#include "camera_yaml.h"
+#include "dataset_reader_util.h"
+#include "dqo_map/io/dataset_reader.h"
+#include "dqo_map/io/image_io.h"
+#include "text_util.h"
+
+namespace dqo {
+
+namespace fs = std::filesystem;
+using io_detail::fail;
+using io_detail::LineFields;
+using io_detail::TextLine;
+
+namespace {
+
+struct ListEntry {
+  double timestamp = 0.0;
+  std::string path;  // as written in the list, relative to the sequence folder
+};
+
+bool read_list(const std::string& path, std::vector<ListEntry>* entries, std::string* error) {
+  std::vector<TextLine> lines;
+  if (!io_detail::read_text_lines(path, &lines, error)) return false;
+  for (const TextLine& line : lines) {
+    const LineFields f(path, line, error);
+    ListEntry entry;
+    if (!f.count(2, 2, "timestamp filename") || !f.number(0, "timestamp", &entry.timestamp)) {
+      return false;
+    }
+    entry.path = line.tokens[1];
+    entries->push_back(std::move(entry));
+  }
+  return true;
+}
+
+class TumDatasetReader : public DatasetReader {
+ public:
+  const DatasetInfo& info() const override { return info_; }
+  int num_frames() const override { return static_cast<int>(frames_.size()); }
+  std::string format() const override { return "tum"; }
+  const std::string& dir() const override { return dir_; }
+
+  std::optional<Frame> read_frame(int i, std::string* error) const override {
+    if (i < 0 || i >= num_frames()) {
+      fail(error, dir_ + ": frame " + std::to_string(i) + " out of range [0, " +
+                      std::to_string(num_frames()) + ")");
+      return std::nullopt;
+    }
+    const Entry& e = frames_[i];
+    Frame frame;
+    frame.index = i;
+    frame.timestamp = e.timestamp;
+    frame.has_pose = e.has_pose;
+    frame.T_wc = e.T_wc;
+    const std::string rgb_path = dir_ + "/" + e.rgb;
+    const std::string depth_path = dir_ + "/" + e.depth;
+    auto rgb = read_rgb_image(rgb_path, error);
+    if (!rgb || !io_detail::check_image_size(rgb_path, *rgb, info_.camera, error)) {
+      return std::nullopt;
+    }
+    frame.rgb = std::move(*rgb);
+    auto depth = read_png_u16(depth_path, error);
+    if (!depth || !io_detail::check_image_size(depth_path, *depth, info_.camera, error)) {
+      return std::nullopt;
+    }
+    frame.depth = depth_from_u16(*depth, info_.depth_scale);
+    return frame;
+  }
+
+  bool open(const std::string& dir, const TumReaderParams& params, std::string* error) {
+    dir_ = dir;
+    info_.depth_scale = params.default_depth_scale;
+    const std::string camera_path = dir + "/camera.yaml";
+    std::error_code ec;
+    if (!fs::exists(camera_path, ec)) {
+      return fail(error, camera_path +
+                             ": missing (TUM sequences need the intrinsics in a camera.yaml "
+                             "beside rgb.txt: width, height, fx, fy, cx, cy, [depth_scale])");
+    }
+    if (!io_detail::read_camera_yaml(camera_path, /*depth_scale_required=*/false, &info_.camera,
+                                     &info_.depth_scale, error)) {
+      return false;
+    }
+    std::vector<ListEntry> rgb, depth;
+    if (!read_list(dir + "/rgb.txt", &rgb, error) ||
+        !read_list(dir + "/depth.txt", &depth, error)) {
+      return false;
+    }
+    Trajectory groundtruth;
+    const std::string gt_path = dir + "/groundtruth.txt";
+    if (fs::exists(gt_path, ec)) {
+      auto poses = read_tum_trajectory(gt_path, error);
+      if (!poses) return false;
+      groundtruth = std::move(*poses);
+      std::stable_sort(groundtruth.begin(), groundtruth.end(),
+                       [](const TimedPose& a, const TimedPose& b) { return a.first < b.first; });
+    }
+
+    std::vector<double> rgb_times, depth_times;
+    for (const ListEntry& e : rgb) rgb_times.push_back(e.timestamp);
+    for (const ListEntry& e : depth) depth_times.push_back(e.timestamp);
+    for (const auto& [i, j] :
+         associate_timestamps(rgb_times, depth_times, params.max_time_difference)) {
+      Entry e;
+      e.timestamp = rgb[i].timestamp;
+      e.rgb = rgb[i].path;
+      e.depth = depth[j].path;
+      if (auto pose = pose_at(groundtruth, e.timestamp, params.pose)) {
+        e.T_wc = *pose;
+        e.has_pose = true;
+      }
+      frames_.push_back(std::move(e));
+    }
+    // rgb.txt is in time order in every TUM sequence; sort anyway so frame order is time order.
+    std::stable_sort(frames_.begin(), frames_.end(),
+                     [](const Entry& a, const Entry& b) { return a.timestamp < b.timestamp; });
+    return true;
+  }
+
+ private:
+  struct Entry {
+    double timestamp = 0.0;
+    std::string rgb;
+    std::string depth;
+    SE3 T_wc;
+    bool has_pose = false;
+  };
+
+  std::string dir_;
+  DatasetInfo info_;
+  std::vector<Entry> frames_;
+};
+
+}  // namespace
+
+std::unique_ptr<DatasetReader> open_tum_dataset(const std::string& dir,
+                                                const TumReaderParams& params,
+                                                std::string* error) {
+  if (!io_detail::check_dataset_dir(dir, error)) return nullptr;
+  auto reader = std::make_unique<TumDatasetReader>();
+  if (!reader->open(dir, params, error)) return nullptr;
+  return reader;
+}
+
+}  // namespace dqo

@@ -1,0 +1,33 @@
+#pragma once
+// Conversions between the core's value types and ROS messages. The ROS layer's only "maths": field
+// copies and unit changes. Private to src/ros (ROS headers stay out of include/dqo_map).
+
+#include <vector>
+
+#include <dqo_map/DetectionArray.h>
+#include <geometry_msgs/Pose.h>
+#include <geometry_msgs/Transform.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <std_msgs/Header.h>
+
+#include "dqo_map/common/dataset.h"
+
+namespace dqo::ros_bridge {
+
+geometry_msgs::Pose to_pose_msg(const SE3& T);
+geometry_msgs::Transform to_transform_msg(const SE3& T);
+SE3 from_pose_msg(const geometry_msgs::Pose& pose);
+
+// RGB → bgra8 (the Azure Kinect driver's colour encoding).
+sensor_msgs::Image to_bgra8_msg(const ImageRgb8& rgb, const std_msgs::Header& header);
+// Metres → 16UC1 millimetres; NaN, ≤ 0 and beyond 65.535 m become 0 (no measurement).
+sensor_msgs::Image to_depth_mm_msg(const DepthImage& depth, const std_msgs::Header& header);
+// A pinhole camera as CameraInfo with zero distortion of the given model ("plumb_bob": 5 zeros,
+// "rational_polynomial": 8 zeros, as the Azure Kinect driver publishes).
+sensor_msgs::CameraInfo to_camera_info_msg(const PinholeCamera& camera, const std_msgs::Header& header,
+                                           const std::string& distortion_model = "plumb_bob");
+dqo_map::DetectionArray to_detection_array_msg(const std::vector<Detection2d>& detections,
+                                               const std_msgs::Header& header);
+
+}  // namespace dqo::ros_bridge
