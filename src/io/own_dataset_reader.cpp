@@ -27,41 +27,28 @@ namespace {
 constexpr long long kMaxId = std::numeric_limits<uint32_t>::max();
 constexpr long long kMaxClass = std::numeric_limits<int>::max();
 
-class OwnDatasetReader : public DatasetReader {
+class OwnDatasetReader : public io_detail::BasicDatasetReader {
  public:
-  const DatasetInfo& info() const override { return info_; }
+  OwnDatasetReader() : BasicDatasetReader("dqo") {}
   int num_frames() const override { return static_cast<int>(poses_.size()); }
-  std::string format() const override { return "dqo"; }
-  const std::string& dir() const override { return dir_; }
 
   std::optional<Frame> read_frame(int i, std::string* error) const override {
-    if (i < 0 || i >= num_frames()) {
-      fail(error, dir_ + ": frame " + std::to_string(i) + " out of range [0, " +
-                      std::to_string(num_frames()) + ")");
-      return std::nullopt;
-    }
+    if (!check_frame_index(i, error)) return std::nullopt;
     Frame frame;
     frame.index = i;
     frame.timestamp = poses_[i].first;
     frame.T_wc = poses_[i].second;
     frame.has_pose = true;
     const std::string name = io_detail::frame_file_name(i, "png");
-    const PinholeCamera& cam = info_.camera;
-    auto rgb = read_rgb_image(dir_ + "/rgb/" + name, error);
-    if (!rgb || !io_detail::check_image_size(dir_ + "/rgb/" + name, *rgb, cam, error)) {
+    if (!read_rgbd(dir_ + "/rgb/" + name, dir_ + "/depth/" + name, &frame, error)) {
       return std::nullopt;
     }
-    frame.rgb = std::move(*rgb);
-    auto depth = read_png_u16(dir_ + "/depth/" + name, error);
-    if (!depth || !io_detail::check_image_size(dir_ + "/depth/" + name, *depth, cam, error)) {
-      return std::nullopt;
-    }
-    frame.depth = depth_from_u16(*depth, info_.depth_scale);
     const std::string instance_path = dir_ + "/instance/" + name;
     std::error_code ec;
     if (fs::exists(instance_path, ec)) {
       auto instance = read_png_u16(instance_path, error);
-      if (!instance || !io_detail::check_image_size(instance_path, *instance, cam, error)) {
+      if (!instance ||
+          !io_detail::check_image_size(instance_path, *instance, info_.camera, error)) {
         return std::nullopt;
       }
       frame.instance = std::move(*instance);
@@ -215,8 +202,6 @@ class OwnDatasetReader : public DatasetReader {
     return true;
   }
 
-  std::string dir_;
-  DatasetInfo info_;
   Trajectory poses_;  // line k of groundtruth.txt is frame k
   std::vector<std::vector<Detection2d>> detections_;
   std::vector<std::vector<FrameObject>> objects_;
@@ -226,10 +211,7 @@ class OwnDatasetReader : public DatasetReader {
 
 std::unique_ptr<DatasetReader> open_own_dataset(const std::string& dir, bool load_meshes,
                                                 std::string* error) {
-  if (!io_detail::check_dataset_dir(dir, error)) return nullptr;
-  auto reader = std::make_unique<OwnDatasetReader>();
-  if (!reader->open(dir, load_meshes, error)) return nullptr;
-  return reader;
+  return io_detail::open_reader<OwnDatasetReader>(dir, load_meshes, error);
 }
 
 }  // namespace dqo

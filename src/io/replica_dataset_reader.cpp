@@ -6,7 +6,6 @@
 #include "camera_yaml.h"
 #include "dataset_reader_util.h"
 #include "dqo_map/io/dataset_reader.h"
-#include "dqo_map/io/image_io.h"
 #include "text_util.h"
 
 namespace dqo {
@@ -26,19 +25,13 @@ std::string numbered(const char* prefix, int i, const char* extension) {
   return buffer;
 }
 
-class ReplicaDatasetReader : public DatasetReader {
+class ReplicaDatasetReader : public io_detail::BasicDatasetReader {
  public:
-  const DatasetInfo& info() const override { return info_; }
+  ReplicaDatasetReader() : BasicDatasetReader("replica") {}
   int num_frames() const override { return static_cast<int>(poses_.size()); }
-  std::string format() const override { return "replica"; }
-  const std::string& dir() const override { return dir_; }
 
   std::optional<Frame> read_frame(int i, std::string* error) const override {
-    if (i < 0 || i >= num_frames()) {
-      fail(error, dir_ + ": frame " + std::to_string(i) + " out of range [0, " +
-                      std::to_string(num_frames()) + ")");
-      return std::nullopt;
-    }
+    if (!check_frame_index(i, error)) return std::nullopt;
     Frame frame;
     frame.index = i;
     frame.timestamp = i * frame_period_;
@@ -46,16 +39,7 @@ class ReplicaDatasetReader : public DatasetReader {
     frame.has_pose = true;
     const std::string rgb_path = dir_ + "/results/" + numbered("frame", i, "jpg");
     const std::string depth_path = dir_ + "/results/" + numbered("depth", i, "png");
-    auto rgb = read_rgb_image(rgb_path, error);
-    if (!rgb || !io_detail::check_image_size(rgb_path, *rgb, info_.camera, error)) {
-      return std::nullopt;
-    }
-    frame.rgb = std::move(*rgb);
-    auto depth = read_png_u16(depth_path, error);
-    if (!depth || !io_detail::check_image_size(depth_path, *depth, info_.camera, error)) {
-      return std::nullopt;
-    }
-    frame.depth = depth_from_u16(*depth, info_.depth_scale);
+    if (!read_rgbd(rgb_path, depth_path, &frame, error)) return std::nullopt;
     return frame;
   }
 
@@ -109,8 +93,6 @@ class ReplicaDatasetReader : public DatasetReader {
     return true;
   }
 
-  std::string dir_;
-  DatasetInfo info_;
   std::vector<SE3> poses_;  // line i of traj.txt is frame i
   double frame_period_ = 1.0 / 30.0;
 };
@@ -120,10 +102,7 @@ class ReplicaDatasetReader : public DatasetReader {
 std::unique_ptr<DatasetReader> open_replica_dataset(const std::string& dir,
                                                     const ReplicaReaderParams& params,
                                                     std::string* error) {
-  if (!io_detail::check_dataset_dir(dir, error)) return nullptr;
-  auto reader = std::make_unique<ReplicaDatasetReader>();
-  if (!reader->open(dir, params, error)) return nullptr;
-  return reader;
+  return io_detail::open_reader<ReplicaDatasetReader>(dir, params, error);
 }
 
 }  // namespace dqo

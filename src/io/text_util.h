@@ -1,33 +1,27 @@
 #pragma once
-// Private helpers of io/ for its text files: exact number formatting, line splitting with line
-// numbers, "file:line: message" errors, and small filesystem utilities. Not installed.
+// Private helpers of io/ for its text files: field-by-field parsing with errors that name file,
+// line, field and column, and per-frame file names. The general text helpers (exact numbers, line
+// splitting, "file:line: message" errors, atomic writes) live in common/ and are named here too, so
+// that io/ code reaches all of them as io_detail::. Not installed.
 
 #include <string>
 #include <vector>
 
+#include "dqo_map/common/text_util.h"
+
 namespace dqo {
 namespace io_detail {
 
-// Shortest text that parses back to exactly the same value (std::to_chars), so every number the
-// writers print is read back bit for bit; plain decimal where that is as short as exponent form.
-std::string format_double(double value);
-std::string format_float(float value);
-
-// The whole token must be a number (std::from_chars: locale independent). Rejects "nan"/"inf"
-// unless allow_non_finite.
-bool parse_double(const std::string& token, double* value, bool allow_non_finite = false);
-bool parse_float(const std::string& token, float* value);
-bool parse_int(const std::string& token, long long* value);
-
-// One meaningful line of a text file: blank lines and lines whose first non-blank character is '#'
-// are skipped, but line numbers count them.
-struct TextLine {
-  int number = 0;                   // 1-based line number in the file
-  std::string text;                 // the line without trailing '\r'
-  std::vector<std::string> tokens;  // split on blanks
-};
-
-bool read_text_lines(const std::string& path, std::vector<TextLine>* lines, std::string* error);
+using text::fail;
+using text::format_double;
+using text::format_float;
+using text::located;
+using text::parse_double;
+using text::parse_float;
+using text::parse_int;
+using text::read_text_lines;
+using text::TextLine;
+using text::write_file_atomically;
 
 // Field-by-field parsing of one line with errors that name file, line, field and column name.
 class LineFields {
@@ -48,17 +42,6 @@ class LineFields {
   const TextLine& line_;
   std::string* error_;
 };
-
-// "path:line: message" (compiler style, clickable in editors and terminals).
-std::string located(const std::string& path, int line, const std::string& message);
-
-// Sets *error when error is not null; returns false so callers can `return fail(error, ...)`.
-bool fail(std::string* error, const std::string& message);
-
-// Writes `content` to a temporary sibling and renames it over `path`, so readers never see a
-// half-written file.
-bool write_file_atomically(const std::string& path, const std::string& content,
-                           std::string* error);
 
 // File name of frame i inside a per-frame folder: 000042.png.
 std::string frame_file_name(int index, const char* extension);

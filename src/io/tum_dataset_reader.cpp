@@ -6,7 +6,6 @@
 #include "camera_yaml.h"
 #include "dataset_reader_util.h"
 #include "dqo_map/io/dataset_reader.h"
-#include "dqo_map/io/image_io.h"
 #include "text_util.h"
 
 namespace dqo {
@@ -38,37 +37,20 @@ bool read_list(const std::string& path, std::vector<ListEntry>* entries, std::st
   return true;
 }
 
-class TumDatasetReader : public DatasetReader {
+class TumDatasetReader : public io_detail::BasicDatasetReader {
  public:
-  const DatasetInfo& info() const override { return info_; }
+  TumDatasetReader() : BasicDatasetReader("tum") {}
   int num_frames() const override { return static_cast<int>(frames_.size()); }
-  std::string format() const override { return "tum"; }
-  const std::string& dir() const override { return dir_; }
 
   std::optional<Frame> read_frame(int i, std::string* error) const override {
-    if (i < 0 || i >= num_frames()) {
-      fail(error, dir_ + ": frame " + std::to_string(i) + " out of range [0, " +
-                      std::to_string(num_frames()) + ")");
-      return std::nullopt;
-    }
+    if (!check_frame_index(i, error)) return std::nullopt;
     const Entry& e = frames_[i];
     Frame frame;
     frame.index = i;
     frame.timestamp = e.timestamp;
     frame.has_pose = e.has_pose;
     frame.T_wc = e.T_wc;
-    const std::string rgb_path = dir_ + "/" + e.rgb;
-    const std::string depth_path = dir_ + "/" + e.depth;
-    auto rgb = read_rgb_image(rgb_path, error);
-    if (!rgb || !io_detail::check_image_size(rgb_path, *rgb, info_.camera, error)) {
-      return std::nullopt;
-    }
-    frame.rgb = std::move(*rgb);
-    auto depth = read_png_u16(depth_path, error);
-    if (!depth || !io_detail::check_image_size(depth_path, *depth, info_.camera, error)) {
-      return std::nullopt;
-    }
-    frame.depth = depth_from_u16(*depth, info_.depth_scale);
+    if (!read_rgbd(dir_ + "/" + e.rgb, dir_ + "/" + e.depth, &frame, error)) return std::nullopt;
     return frame;
   }
 
@@ -131,8 +113,6 @@ class TumDatasetReader : public DatasetReader {
     bool has_pose = false;
   };
 
-  std::string dir_;
-  DatasetInfo info_;
   std::vector<Entry> frames_;
 };
 
@@ -141,10 +121,7 @@ class TumDatasetReader : public DatasetReader {
 std::unique_ptr<DatasetReader> open_tum_dataset(const std::string& dir,
                                                 const TumReaderParams& params,
                                                 std::string* error) {
-  if (!io_detail::check_dataset_dir(dir, error)) return nullptr;
-  auto reader = std::make_unique<TumDatasetReader>();
-  if (!reader->open(dir, params, error)) return nullptr;
-  return reader;
+  return io_detail::open_reader<TumDatasetReader>(dir, params, error);
 }
 
 }  // namespace dqo

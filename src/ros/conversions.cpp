@@ -1,5 +1,6 @@
 #include "conversions.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -104,6 +105,146 @@ dqo_map::DetectionArray to_detection_array_msg(const std::vector<Detection2d>& d
     msg.detections.push_back(det);
   }
   return msg;
+}
+
+namespace {
+
+bool check_layout(const sensor_msgs::Image& msg, size_t bytes_per_pixel, const char* what,
+                  std::string* error) {
+  const size_t row = static_cast<size_t>(msg.width) * bytes_per_pixel;
+  if (msg.width == 0 || msg.height == 0 || msg.step < row ||
+      msg.data.size() < static_cast<size_t>(msg.step) * (msg.height - 1) + row) {
+    if (error) {
+      *error = std::string(what) + " image " + std::to_string(msg.width) + "x" + std::to_string(msg.height) +
+               " (" + msg.encoding + ", step " + std::to_string(msg.step) + ") holds " +
+               std::to_string(msg.data.size()) + " bytes: malformed";
+    }
+    return false;
+  }
+  return true;
+}
+
+// The host is little-endian (x86, ARM as ROS runs on them): data marked big-endian is swapped.
+template <typename T>
+T read_scalar(const uint8_t* p, bool big_endian) {
+  uint8_t b[sizeof(T)];
+  std::memcpy(b, p, sizeof(T));
+  if (big_endian) std::reverse(b, b + sizeof(T));
+  T v;
+  std::memcpy(&v, b, sizeof(T));
+  return v;
+}
+
+}  // namespace
+
+bool from_colour_msg(const sensor_msgs::Image& msg, ImageRgb8* rgb, std::string* error) {
+  namespace enc = sensor_msgs::image_encodings;
+  // Source channel of R, G, B per encoding.
+  int channels = 0, r = 0, g = 0, b = 0;
+  if (msg.encoding == enc::BGRA8) {
+    channels = 4, r = 2, g = 1, b = 0;
+  } else if (msg.encoding == enc::BGR8) {
+    channels = 3, r = 2, g = 1, b = 0;
+  } else if (msg.encoding == enc::RGB8) {
+    channels = 3, r = 0, g = 1, b = 2;
+  } else if (msg.encoding == enc::RGBA8) {
+    channels = 4, r = 0, g = 1, b = 2;
+  } else if (msg.encoding == enc::MONO8 || msg.encoding == enc::TYPE_8UC1) {
+    channels = 1, r = 0, g = 0, b = 0;
+  } else {
+    if (error) {
+      *error = "colour encoding '" + msg.encoding + "' is not supported (bgra8, bgr8, rgb8, rgba8, mono8)";
+    }
+    return false;
+  }
+  if (!check_layout(msg, channels, "colour", error)) return false;
+  *rgb = ImageRgb8(static_cast<int>(msg.width), static_cast<int>(msg.height), 3);
+  uint8_t* out = rgb->data.data();
+  for (uint32_t y = 0; y < msg.height; ++y) {
+    const uint8_t* in = msg.data.data() + static_cast<size_t>(y) * msg.step;
+    for (uint32_t x = 0; x < msg.width; ++x, in += channels, out += 3) {
+      out[0] = in[r];
+      out[1] = in[g];
+      out[2] = in[b];
+    }
+  }
+  return true;
+}
+
+bool from_depth_msg(const sensor_msgs::Image& msg, DepthImage* depth, std::string* error) {
+  namespace enc = sensor_msgs::image_encodings;
+  const bool mm = msg.encoding == enc::TYPE_16UC1 || msg.encoding == enc::MONO16;
+  const bool metres = msg.encoding == enc::TYPE_32FC1;
+  if (!mm && !metres) {
+    if (error) *error = "depth encoding '" + msg.encoding + "' is not supported (16UC1 millimetres, 32FC1 metres)";
+    return false;
+  }
+  if (!check_layout(msg, mm ? 2 : 4, "depth", error)) return false;
+  *depth = DepthImage(static_cast<int>(msg.width), static_cast<int>(msg.height), 1);
+  float* out = depth->data.data();
+  const bool big = msg.is_bigendian != 0;
+  for (uint32_t y = 0; y < msg.height; ++y) {
+    const uint8_t* in = msg.data.data() + static_cast<size_t>(y) * msg.step;
+    for (uint32_t x = 0; x < msg.width; ++x, ++out) {
+      float z;
+      if (mm) {
+        z = 0.001f * static_cast<float>(read_scalar<uint16_t>(in + 2 * x, big));
+      } else {
+        z = read_scalar<float>(in + 4 * x, big);
+      }
+      *out = (std::isfinite(z) && z > 0.f) ? z : 0.f;
+    }
+  }
+  return true;
+}
+
+size_t count_valid_depth(const DepthImage& depth) {
+  return static_cast<size_t>(
+      std::count_if(depth.data.begin(), depth.data.end(), [](float z) { return z > 0.f; }));
+}
+
+sensor_msgs::Image to_rgb8_msg(const ImageRgb8& rgb, const std_msgs::Header& header) {
+  sensor_msgs::Image msg;
+  msg.header = header;
+  msg.width = rgb.width;
+  msg.height = rgb.height;
+  msg.encoding = sensor_msgs::image_encodings::RGB8;
+  msg.is_bigendian = 0;
+  msg.step = rgb.width * 3;
+  if (rgb.channels == 3) {
+    msg.data = rgb.data;
+  } else {
+    msg.data.resize(static_cast<size_t>(msg.step) * rgb.height);
+    const size_t n = static_cast<size_t>(rgb.width) * rgb.height;
+    for (size_t i = 0; i < n; ++i) {
+      for (int c = 0; c < 3; ++c) msg.data[3 * i + c] = rgb.data[i * rgb.channels + std::min(c, rgb.channels - 1)];
+    }
+  }
+  return msg;
+}
+
+sensor_msgs::Image to_depth_m_msg(const DepthImage& depth, const std_msgs::Header& header) {
+  sensor_msgs::Image msg;
+  msg.header = header;
+  msg.width = depth.width;
+  msg.height = depth.height;
+  msg.encoding = sensor_msgs::image_encodings::TYPE_32FC1;
+  msg.is_bigendian = 0;
+  msg.step = depth.width * 4;
+  msg.data.resize(static_cast<size_t>(msg.step) * depth.height);
+  std::memcpy(msg.data.data(), depth.data.data(), msg.data.size());
+  return msg;
+}
+
+tracking::CameraCalibration to_calibration(const sensor_msgs::CameraInfo& info) {
+  tracking::CameraCalibration c;
+  c.width = static_cast<int>(info.width);
+  c.height = static_cast<int>(info.height);
+  std::copy(info.K.begin(), info.K.end(), c.K.begin());
+  std::copy(info.P.begin(), info.P.end(), c.P.begin());
+  c.distortion_model = info.distortion_model;
+  c.D = info.D;
+  return c;
 }
 
 }  // namespace dqo::ros_bridge

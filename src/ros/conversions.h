@@ -2,6 +2,7 @@
 // Conversions between the core's value types and ROS messages. The ROS layer's only "maths": field
 // copies and unit changes. Private to src/ros (ROS headers stay out of include/dqo_map).
 
+#include <string>
 #include <vector>
 
 #include <dqo_map/DetectionArray.h>
@@ -12,6 +13,7 @@
 #include <std_msgs/Header.h>
 
 #include "dqo_map/common/dataset.h"
+#include "dqo_map/tracking/undistortion.h"
 
 namespace dqo::ros_bridge {
 
@@ -29,5 +31,22 @@ sensor_msgs::CameraInfo to_camera_info_msg(const PinholeCamera& camera, const st
                                            const std::string& distortion_model = "plumb_bob");
 dqo_map::DetectionArray to_detection_array_msg(const std::vector<Detection2d>& detections,
                                                const std_msgs::Header& header);
+
+// Colour images of the encodings cameras publish (bgra8, bgr8, rgb8, rgba8, mono8) as 3-channel
+// RGB. False and *error (naming the encoding and those accepted) otherwise, or when the message's
+// size fields do not match its data.
+bool from_colour_msg(const sensor_msgs::Image& msg, ImageRgb8* rgb, std::string* error);
+// Depth as metres: 16UC1 (or mono16) millimetres, 32FC1 metres. Anything that is not a positive
+// finite depth (0, NaN, inf, negative) becomes 0, "no measurement". Big-endian data is swapped.
+bool from_depth_msg(const sensor_msgs::Image& msg, DepthImage* depth, std::string* error);
+// Pixel count with a measurement (> 0).
+size_t count_valid_depth(const DepthImage& depth);
+
+// Rectified images for KeyFrame messages: rgb8, and 32FC1 metres (0 = no measurement).
+sensor_msgs::Image to_rgb8_msg(const ImageRgb8& rgb, const std_msgs::Header& header);
+sensor_msgs::Image to_depth_m_msg(const DepthImage& depth, const std_msgs::Header& header);
+
+// The calibration of a CameraInfo, for the undistortion (ROS-free types).
+tracking::CameraCalibration to_calibration(const sensor_msgs::CameraInfo& info);
 
 }  // namespace dqo::ros_bridge

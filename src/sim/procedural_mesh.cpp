@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "catmull_rom.h"
+
 namespace dqo::sim {
 namespace {
 
@@ -92,25 +94,6 @@ std::vector<std::array<int, 3>> triangulate(const std::vector<Eigen::Vector2d>& 
 }
 
 double spow(double x, double e) { return std::copysign(std::pow(std::abs(x), e), x); }
-
-// Centripetal Catmull-Rom point between p1 and p2 at u in [0, 1] (Barry–Goldman pyramid).
-Eigen::Vector2d catmull_rom(const Eigen::Vector2d& p0, const Eigen::Vector2d& p1,
-                            const Eigen::Vector2d& p2, const Eigen::Vector2d& p3, double u) {
-  auto knot = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    return std::max(std::sqrt((b - a).norm()), 1e-9);
-  };
-  const double t0 = 0.0;
-  const double t1 = t0 + knot(p0, p1);
-  const double t2 = t1 + knot(p1, p2);
-  const double t3 = t2 + knot(p2, p3);
-  const double t = t1 + u * (t2 - t1);
-  const Eigen::Vector2d a1 = (t1 - t) / (t1 - t0) * p0 + (t - t0) / (t1 - t0) * p1;
-  const Eigen::Vector2d a2 = (t2 - t) / (t2 - t1) * p1 + (t - t1) / (t2 - t1) * p2;
-  const Eigen::Vector2d a3 = (t3 - t) / (t3 - t2) * p2 + (t - t2) / (t3 - t2) * p3;
-  const Eigen::Vector2d b1 = (t2 - t) / (t2 - t0) * a1 + (t - t0) / (t2 - t0) * a2;
-  const Eigen::Vector2d b2 = (t3 - t) / (t3 - t1) * a2 + (t - t1) / (t3 - t1) * a3;
-  return (t2 - t) / (t2 - t1) * b1 + (t - t1) / (t2 - t1) * b2;
-}
 
 }  // namespace
 
@@ -218,8 +201,8 @@ std::vector<Eigen::Vector2d> smooth_profile(const std::vector<Eigen::Vector2d>& 
     const Eigen::Vector2d p0 = is_corner(i) ? 2.0 * points[i] - points[i + 1] : points[i - 1];
     const Eigen::Vector2d p3 = is_corner(i + 1) ? 2.0 * points[i + 1] - points[i] : points[i + 2];
     for (int s = 1; s <= subdivisions; ++s) {
-      Eigen::Vector2d p = catmull_rom(p0, points[i], points[i + 1], p3,
-                                      static_cast<double>(s) / (subdivisions + 1));
+      Eigen::Vector2d p = detail::catmull_rom(p0, points[i], points[i + 1], p3,
+                                              static_cast<double>(s) / (subdivisions + 1));
       p.x() = std::max(0.0, p.x());
       out.push_back(p);
     }

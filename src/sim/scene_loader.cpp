@@ -3,9 +3,11 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <set>
 #include <sstream>
 
+#include "dqo_map/common/tum_trajectory.h"
 #include "dqo_map/sim/primitives.h"
 #include "scene_parse.h"
 
@@ -206,8 +208,9 @@ std::vector<TrajectoryPose> parse_trajectory(const YAML::Node& node, ParseContex
     const YAML::Node file_node = m.required("file");
     const std::string path = resolve_path(ctx, as_string(file_node, ctx.file, m.what("file")));
     std::string err;
-    poses = read_tum_trajectory(path, &err);
-    if (!err.empty()) fail_at(ctx.file, file_node, "cannot read the trajectory: " + err);
+    const std::optional<Trajectory> tum = read_tum_trajectory(path, &err);
+    if (!tum) fail_at(ctx.file, file_node, "cannot read the trajectory: " + err);
+    for (const auto& [timestamp, T_wc] : *tum) poses.push_back({timestamp, T_wc});
     if (static_cast<int>(poses.size()) < frames) {
       fail_at(ctx.file, file_node,
               "the trajectory '" + path + "' has " + std::to_string(poses.size()) +

@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <random>
-#include <sstream>
+
+#include "catmull_rom.h"
 
 namespace dqo::sim {
 namespace {
@@ -17,24 +17,6 @@ double uniform01(std::mt19937_64& rng) {
   return static_cast<double>(rng() >> 11) * (1.0 / 9007199254740992.0);
 }
 
-Eigen::Vector3d catmull_rom(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
-                            const Eigen::Vector3d& p2, const Eigen::Vector3d& p3, double u) {
-  auto knot = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-    return std::max(std::sqrt((b - a).norm()), 1e-9);
-  };
-  const double t0 = 0.0;
-  const double t1 = t0 + knot(p0, p1);
-  const double t2 = t1 + knot(p1, p2);
-  const double t3 = t2 + knot(p2, p3);
-  const double t = t1 + u * (t2 - t1);
-  const Eigen::Vector3d a1 = (t1 - t) / (t1 - t0) * p0 + (t - t0) / (t1 - t0) * p1;
-  const Eigen::Vector3d a2 = (t2 - t) / (t2 - t1) * p1 + (t - t1) / (t2 - t1) * p2;
-  const Eigen::Vector3d a3 = (t3 - t) / (t3 - t2) * p2 + (t - t2) / (t3 - t2) * p3;
-  const Eigen::Vector3d b1 = (t2 - t) / (t2 - t0) * a1 + (t - t0) / (t2 - t0) * a2;
-  const Eigen::Vector3d b2 = (t3 - t) / (t3 - t1) * a2 + (t - t1) / (t3 - t1) * a3;
-  return (t2 - t) / (t2 - t1) * b1 + (t - t1) / (t2 - t1) * b2;
-}
-
 // Point on the spline through `pts` in segment k at u; the ends use reflected phantom points so
 // that the curve starts and stops along its first and last segments.
 Eigen::Vector3d spline_at(const std::vector<Eigen::Vector3d>& pts, int k, double u) {
@@ -44,7 +26,7 @@ Eigen::Vector3d spline_at(const std::vector<Eigen::Vector3d>& pts, int k, double
   const Eigen::Vector3d p0 = k > 0 ? pts[k - 1] : 2.0 * p1 - p2;
   const Eigen::Vector3d p3 = k + 2 < n ? pts[k + 2] : 2.0 * p2 - p1;
   if ((p2 - p1).norm() < 1e-12) return p1;
-  return catmull_rom(p0, p1, p2, p3, u);
+  return detail::catmull_rom(p0, p1, p2, p3, u);
 }
 
 // A smooth random signal: three slow sinusoids (0.1 to 1.2 Hz, the band of a walking hand).
@@ -147,41 +129,6 @@ std::vector<TrajectoryPose> make_walk(const WalkParams& params, int frames, doub
         Eigen::AngleAxisd(phi.norm(), phi.norm() > 0.0 ? Eigen::Vector3d(phi.normalized())
                                                        : Eigen::Vector3d::UnitZ()));
     poses.push_back({t, SE3(T.quaternion() * dq, position)});
-  }
-  return poses;
-}
-
-std::vector<TrajectoryPose> read_tum_trajectory(const std::string& path, std::string* error) {
-  std::vector<TrajectoryPose> poses;
-  std::ifstream in(path);
-  if (!in) {
-    if (error) *error = path + ": cannot open the trajectory file";
-    return {};
-  }
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const size_t first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream ss(line);
-    double v[8];
-    int count = 0;
-    while (count < 8 && ss >> v[count]) ++count;
-    std::string rest;
-    if (count != 8 || (ss >> rest)) {
-      if (error) {
-        *error = path + ":" + std::to_string(line_no) +
-                 ": expected 8 numbers (timestamp tx ty tz qx qy qz qw)";
-      }
-      return {};
-    }
-    const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-    if (std::abs(q.norm() - 1.0) > 1e-3) {
-      if (error) *error = path + ":" + std::to_string(line_no) + ": quaternion is not unit length";
-      return {};
-    }
-    poses.push_back({v[0], SE3(q, Eigen::Vector3d(v[1], v[2], v[3]))});
   }
   return poses;
 }

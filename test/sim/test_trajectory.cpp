@@ -1,10 +1,8 @@
-// Camera paths: look-at convention, orbits, hand-held walks, TUM files.
+// Camera paths: look-at convention, orbits, hand-held walks (TUM files: test/common).
 
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <numeric>
 
 #include "dqo_map/sim/trajectory.h"
@@ -77,18 +75,6 @@ TEST(Trajectory, WalkIsSmoothAtConstantSpeedThroughItsEnds) {
   }
   EXPECT_GT(max_offset, 0.002);
   EXPECT_LT(max_offset, 0.02);
-}
-
-TEST(Trajectory, TumFileErrorsNameTheLine) {
-  const auto path = (std::filesystem::temp_directory_path() / "dqo_sim_bad_traj.txt").string();
-  {
-    std::ofstream f(path);
-    f << "# comment\n1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 1\n";
-  }
-  std::string error;
-  EXPECT_TRUE(read_tum_trajectory(path, &error).empty());
-  EXPECT_NE(error.find(path + ":3:"), std::string::npos) << error;
-  std::filesystem::remove(path);
 }
 
 }  // namespace

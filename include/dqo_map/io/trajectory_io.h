@@ -1,31 +1,16 @@
 #pragma once
-// Timestamped poses in the TUM RGB-D format, and the timestamp matching that TUM data needs
-// (image streams against each other, images against ground truth, estimates against ground truth).
-//
-// TUM trajectory file: one pose per line, `t tx ty tz qx qy qz qw` (seconds; T_world_camera as a
-// translation and a unit quaternion, scalar last); lines starting with '#' and blank lines are
-// comments. Written with the shortest decimal text that parses back to the same double (exact).
+// The timestamp matching that TUM RGB-D data needs (image streams against each other, images
+// against ground truth, estimates against ground truth). The TUM trajectory file format itself
+// (Trajectory, read_tum_trajectory, write_tum_trajectory) is in common/tum_trajectory.h.
 
 #include <optional>
-#include <string>
 #include <utility>
 #include <vector>
 
+#include "dqo_map/common/tum_trajectory.h"
 #include "dqo_map/geometry/se3.h"
 
 namespace dqo {
-
-using TimedPose = std::pair<double, SE3>;  // (timestamp in seconds, T_world_camera)
-using Trajectory = std::vector<TimedPose>;
-
-// Writes atomically (temporary sibling, then rename), with a header comment line.
-bool write_tum_trajectory(const std::string& path, const Trajectory& poses,
-                          std::string* error = nullptr);
-
-// Poses in file order. Errors name the file and line: wrong number of fields, a field that is not
-// a finite number, a quaternion of (near) zero norm. Quaternions are normalised.
-std::optional<Trajectory> read_tum_trajectory(const std::string& path,
-                                              std::string* error = nullptr);
 
 // Pairs (i, j) of a[i] and b[j] with |a[i] - b[j]| <= max_difference, each index used at most
 // once, chosen greedily by increasing difference (as TUM's associate.py does); sorted by i.

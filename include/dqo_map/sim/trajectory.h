@@ -3,7 +3,6 @@
 
 #include <Eigen/Core>
 #include <cstdint>
-#include <string>
 #include <vector>
 
 #include "dqo_map/geometry/se3.h"
@@ -40,9 +39,5 @@ struct WalkParams {
   uint64_t seed = 0;
 };
 std::vector<TrajectoryPose> make_walk(const WalkParams& params, int frames, double fps);
-
-// A TUM trajectory file (`timestamp tx ty tz qx qy qz qw`, T_wc, `#` comments). Empty and *error
-// set ("file:line: ...") when it does not parse.
-std::vector<TrajectoryPose> read_tum_trajectory(const std::string& path, std::string* error);
 
 }  // namespace dqo::sim

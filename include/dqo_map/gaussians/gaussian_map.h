@@ -1,0 +1,92 @@
+#pragma once
+// The Gaussian map as a structure of arrays: each attribute one flat, contiguous float/int array
+// (3 floats per position, 4 per rotation, ...), so that the CPU rasteriser streams through them and
+// the CUDA backend copies them to the device as they are. Every Gaussian carries the ID of the
+// object it belongs to (0 = background), its type (opaque OG / transparent TG, METHOD.md §4), a
+// confidence and a stable flag for the incremental update.
+//
+// Indices are not stable across remove_if(); object IDs are. The per-object index is rebuilt lazily.
+
+#include <cstddef>
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace dqo::gs {
+
+enum class GaussianType : uint8_t { kOpaque = 0, kTransparent = 1 };
+
+// Opacities fixed per type unless opacity training is on (METHOD.md §4: OG 0.9, TG 0.1).
+constexpr float kOpaqueOpacity = 0.9f;
+constexpr float kTransparentOpacity = 0.1f;
+
+struct GaussianInit {
+  Eigen::Vector3f position = Eigen::Vector3f::Zero();  // world frame, metres
+  Eigen::Vector3f log_scale = Eigen::Vector3f::Constant(-4.6f);  // log of the standard deviations
+  Eigen::Vector4f rotation = Eigen::Vector4f(1, 0, 0, 0);        // unit quaternion (w, x, y, z)
+  Eigen::Vector3f colour = Eigen::Vector3f::Constant(0.5f);      // RGB in [0, 1] (degree-0 SH)
+  float opacity = -1.f;  // < 0: the type's fixed opacity
+  uint32_t object_id = 0;
+  GaussianType type = GaussianType::kOpaque;
+  uint32_t birth_keyframe = 0;
+};
+
+class GaussianMap {
+ public:
+  size_t size() const { return object_id_.size(); }
+  bool empty() const { return object_id_.empty(); }
+
+  // Appends one Gaussian; returns its index.
+  size_t add(const GaussianInit& g);
+  void reserve(size_t n);
+
+  // Removes every Gaussian i with remove[i] != 0 (remove.size() == size()); keeps the order of the
+  // rest. Returns how many were removed.
+  size_t remove_if(const std::vector<uint8_t>& remove);
+
+  // Gaussians of one object (0 = background), in index order.
+  const std::vector<uint32_t>& indices_of(uint32_t object_id) const;
+  // Object IDs present in the map, ascending.
+  std::vector<uint32_t> object_ids() const;
+
+  // Every Gaussian of `from` becomes `to`'s (an object merged into another; to = 0 returns them to
+  // the background). Returns how many were relabelled.
+  size_t relabel(uint32_t from, uint32_t to);
+
+  // Bytes held by the attribute arrays (capacity, not size).
+  size_t bytes_used() const;
+
+  // Flat attribute arrays, index i at [i * width, (i + 1) * width).
+  std::vector<float>& positions() { return position_; }            // 3 per Gaussian
+  std::vector<float>& log_scales() { return log_scale_; }          // 3
+  std::vector<float>& rotations() { return rotation_; }            // 4: w x y z (not kept unit:
+                                                                    // normalised where used)
+  std::vector<float>& opacities() { return opacity_; }             // 1, in (0, 1)
+  std::vector<float>& colours() { return colour_; }                // 3, RGB
+  std::vector<float>& confidences() { return confidence_; }        // 1
+  std::vector<uint8_t>& stable() { return stable_; }               // 1: frozen when non-zero
+  const std::vector<float>& positions() const { return position_; }
+  const std::vector<float>& log_scales() const { return log_scale_; }
+  const std::vector<float>& rotations() const { return rotation_; }
+  const std::vector<float>& opacities() const { return opacity_; }
+  const std::vector<float>& colours() const { return colour_; }
+  const std::vector<float>& confidences() const { return confidence_; }
+  const std::vector<uint8_t>& stable() const { return stable_; }
+  const std::vector<uint32_t>& object_ids_per_gaussian() const { return object_id_; }
+  const std::vector<uint8_t>& types() const { return type_; }           // GaussianType values
+  const std::vector<uint32_t>& birth_keyframes() const { return birth_keyframe_; }
+
+ private:
+  void invalidate_index() { index_valid_ = false; }
+
+  std::vector<float> position_, log_scale_, rotation_, opacity_, colour_, confidence_;
+  std::vector<uint32_t> object_id_, birth_keyframe_;
+  std::vector<uint8_t> type_, stable_;
+
+  mutable bool index_valid_ = false;
+  mutable std::unordered_map<uint32_t, std::vector<uint32_t>> index_;
+};
+
+}  // namespace dqo::gs

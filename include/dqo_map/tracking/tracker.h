@@ -1,0 +1,89 @@
+#pragma once
+// RGB-D camera tracking: the RGB-D path of ORB-SLAM2 written anew (ORB features, motion model and
+// projection search, PnP RANSAC against the last keyframe, pose-only refinement, local-map
+// tracking, keyframes, local bundle adjustment on its own thread, relocalisation) fused with dense
+// depth alignment so that it holds where features are few or motion is large.
+//
+// Threads: track() runs on the caller's thread; local BA runs on a worker owned by the Tracker and
+// hands corrected poses back through corrected_frames(). No global state; the map lives in
+// ID-keyed stores owned by the Tracker.
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "dqo_map/common/image.h"
+#include "dqo_map/geometry/pinhole_camera.h"
+#include "dqo_map/geometry/se3.h"
+#include "dqo_map/tracking/tracker_params.h"
+
+namespace dqo::tracking {
+
+enum class TrackingState {
+  kNotInitialised,  // no frame with enough valid depth yet
+  kOk,
+  kLost,            // relocalisation is tried on every frame until it succeeds
+};
+const char* to_string(TrackingState state);
+
+// One rectified RGB-D capture (pinhole camera, depth registered to colour).
+struct RgbdInput {
+  double timestamp = 0.0;  // seconds; must increase (a jump back is the caller's reset)
+  const ImageRgb8* rgb = nullptr;   // 3 channels
+  const DepthImage* depth = nullptr;  // metres, 0/NaN = none
+};
+
+struct TrackResult {
+  TrackingState state = TrackingState::kNotInitialised;
+  SE3 T_wc;                  // valid when state == kOk
+  bool new_keyframe = false; // the tracker's own keyframe was created from this frame
+  int features = 0;          // ORB keypoints extracted
+  int inliers = 0;           // map point matches kept by the pose optimisation
+  bool relocalised = false;  // this frame ended a lost spell
+  // Neither features nor dense alignment held on this frame (fewer than frames_to_lost in a
+  // row): T_wc is the constant-velocity prediction, state still kOk.
+  bool predicted = false;
+  double milliseconds = 0.0; // time spent in track()
+};
+
+// A pose corrected by local bundle adjustment, for a frame registered with register_frame().
+struct CorrectedPose {
+  uint64_t id = 0;
+  SE3 T_wc;
+};
+
+class Tracker {
+ public:
+  Tracker(const PinholeCamera& camera, const TrackerParams& params);
+  ~Tracker();  // stops and joins the local BA thread
+  Tracker(const Tracker&) = delete;
+  Tracker& operator=(const Tracker&) = delete;
+
+  TrackResult track(const RgbdInput& input);
+
+  // Forgets the map and starts over (a looping bag, a time jump backwards).
+  void reset();
+
+  // Remembers the last tracked frame under `id` (a mapping keyframe chosen by the caller): its pose
+  // is kept relative to the tracker's reference keyframe, so that later bundle adjustments move it
+  // too. Call right after a track() that returned kOk.
+  void register_frame(uint64_t id);
+
+  // The registered frames whose poses bundle adjustment changed since the last call (thread-safe).
+  std::vector<CorrectedPose> corrected_frames();
+
+  // Blocks until the local BA worker is idle and applies what it finished (tests, the end of an
+  // offline run). Call on the thread that calls track().
+  void wait_for_mapping();
+
+  TrackingState state() const;
+  size_t num_keyframes() const;
+  size_t num_map_points() const;
+  uint64_t local_ba_runs() const;  // bundle adjustments applied to the map since construction
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dqo::tracking

@@ -1,0 +1,108 @@
+#pragma once
+// Parameters of the RGB-D tracker, one struct per stage, loaded once (from the node's YAML or the
+// CLI's --config). Defaults are the shipped configuration (config/tracking.yaml mirrors them).
+
+namespace dqo::tracking {
+
+struct OrbParams {
+  int num_features = 1000;     // per frame, spread over a grid and the pyramid
+  float scale_factor = 1.2f;
+  int num_levels = 8;
+  int fast_threshold = 20;     // ORB-SLAM2's iniThFAST
+  int min_fast_threshold = 7;  // retried per grid cell where the first finds nothing
+  int grid_cell_px = 30;
+  double min_depth = 0.1;      // metres: keypoints without depth in [min, max] get no 3D point
+  double max_depth = 6.0;
+};
+
+struct DenseParams {
+  int pyramid_levels = 4;            // level 0 = the input size; each level halves it (at most 4)
+  int finest_level = 1;              // skip the full resolution for speed (0 = use it)
+  int iterations[4] = {4, 6, 8, 10}; // Gauss-Newton iterations per level, finest first
+  double max_depth = 6.0;
+  double max_point_distance = 0.1;   // metres, finest level (doubling per level above): farther
+                                     // correspondences are outliers
+  double max_normal_angle_deg = 30.0;
+  double colour_weight = 0.1;        // weight of the photometric term against point-to-plane
+  double huber_delta = 0.02;         // metres (geometric residual)
+  // Noise model whitening the point-to-plane residual: σ(z)² = min_depth_sigma_m² + (k z²)², so
+  // that far, noisy points count less (k as PoseOptimiserParams::depth_sigma_per_m2).
+  double depth_sigma_per_m2 = 0.0015;
+  double min_depth_sigma_m = 0.002;  // floor: discretisation and normal errors
+  double intensity_sigma = 0.02;     // photometric residual's σ, intensity in [0, 1]
+  double huber_delta_intensity = 0.1;
+  double min_gradient = 0.01;        // intensity/pixel; flatter pixels skip the photometric term
+  int min_inliers = 500;             // at the finest level used; fewer: failure
+  double min_inlier_ratio = 0.25;    // inliers / valid current points there; lower: failure
+  double max_update_m = 0.3;         // a solution farther than this from the guess has diverged
+  double max_update_deg = 30.0;
+  double max_whitened_rms = 1.5;     // larger (in σ): a wrong local minimum, failure
+  double convergence_px = 0.05;      // a level stops when a step moves the image less (its pixels)
+};
+
+struct PoseOptimiserParams {
+  double huber_reprojection_px = 2.45;  // sqrt(5.991), ORB-SLAM2's chi-square 95 % for 2 DoF
+  double huber_depth_m = 0.05;
+  double depth_sigma_per_m2 = 0.0015;   // σ_z = k z² (the Azure Kinect's and the sim's noise)
+  int rounds = 4;                       // outlier rejection rounds, ORB-SLAM2 style
+  double dense_prior_weight = 1.0;      // scale of the dense alignment's information matrix
+  // Floor of the depth residual's σ: a map point's own position error (its depth noise when it
+  // was created, a keypoint landing beside a depth edge) is not smaller than this.
+  double depth_sigma_min_m = 0.002;
+  int iterations = 10;                  // Ceres iterations per round
+  // The dense prior's chi-square at the feature solution above which dense and features disagree
+  // (6 DoF): the features are then trusted alone when they hold by themselves.
+  double max_prior_chi2 = 100.0;
+};
+
+struct SearchParams {               // data association by projection (ORB-SLAM2's radii)
+  double frame_radius_px = 7.0;     // last frame's points, from the motion model's guess
+  double dense_radius_px = 5.0;     // the same from the dense alignment's (better) guess
+  double local_map_radius_px = 5.0; // local map points, from the refined pose
+  float local_map_ratio = 0.8f;     // best / second best Hamming distance at the same level
+  int local_map_keyframes = 20;     // keyframes whose points make the local map
+  int min_matches = 20;             // fewer after the frame-to-frame search: widen, then PnP
+};
+
+struct KeyframeParams {             // the tracker's own map (ORB-SLAM2's policy)
+  int min_frames = 0;
+  int max_frames = 30;
+  double min_tracked_ratio = 0.9;   // new keyframe when tracked / reference-tracked falls below
+  int min_close_points = 100;
+  // Where features are too few to count (dense alignment alone holds the pose), a keyframe
+  // whenever the camera has moved this far from the last one, so the map keeps up.
+  double weak_translation_m = 0.1;
+  double weak_rotation_deg = 10.0;
+  int max_new_points = 500;         // map points created per keyframe (nearest first)
+};
+
+struct LocalBaParams {
+  bool enabled = true;
+  int covisible_keyframes = 10;
+  int iterations = 10;
+  int fixed_keyframes = 10;         // keyframes outside the window that see its points, held fixed
+  // Run the adjustment inside track() instead of on the worker (deterministic, for tests).
+  bool synchronous = false;
+};
+
+struct RelocParams {
+  int candidate_keyframes = 20;   // matched by descriptor against this many recent/covisible
+  int min_inliers = 30;
+  int max_pnp = 5;                // candidates (the best matched first) given to PnP RANSAC
+};
+
+struct TrackerParams {
+  OrbParams orb;
+  DenseParams dense;
+  PoseOptimiserParams pose;
+  KeyframeParams keyframes;
+  LocalBaParams local_ba;
+  RelocParams reloc;
+  SearchParams search;
+  bool use_dense = true;        // fuse dense depth alignment with the features
+  bool use_features = true;
+  int min_inliers_ok = 15;      // below: this frame's tracking failed
+  int frames_to_lost = 3;       // consecutive failures before the state becomes kLost
+};
+
+}  // namespace dqo::tracking

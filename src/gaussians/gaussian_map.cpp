@@ -1,0 +1,120 @@
+#include "dqo_map/gaussians/gaussian_map.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+namespace dqo::gs {
+
+namespace {
+
+// Keeps the entries of one attribute array (width values per Gaussian) whose Gaussian survives.
+template <typename V>
+void compact(std::vector<V>& values, size_t width, const std::vector<uint8_t>& remove) {
+  size_t out = 0;
+  for (size_t i = 0; i < remove.size(); ++i) {
+    if (remove[i]) continue;
+    if (out != i) std::copy_n(values.begin() + i * width, width, values.begin() + out * width);
+    ++out;
+  }
+  values.resize(out * width);
+}
+
+template <typename V>
+size_t capacity_bytes(const std::vector<V>& v) {
+  return v.capacity() * sizeof(V);
+}
+
+}  // namespace
+
+size_t GaussianMap::add(const GaussianInit& g) {
+  const size_t index = size();
+  position_.insert(position_.end(), g.position.data(), g.position.data() + 3);
+  log_scale_.insert(log_scale_.end(), g.log_scale.data(), g.log_scale.data() + 3);
+  rotation_.insert(rotation_.end(), g.rotation.data(), g.rotation.data() + 4);
+  colour_.insert(colour_.end(), g.colour.data(), g.colour.data() + 3);
+  const float type_opacity = g.type == GaussianType::kOpaque ? kOpaqueOpacity : kTransparentOpacity;
+  opacity_.push_back(g.opacity < 0.f ? type_opacity : g.opacity);
+  confidence_.push_back(0.f);
+  stable_.push_back(0);
+  object_id_.push_back(g.object_id);
+  birth_keyframe_.push_back(g.birth_keyframe);
+  type_.push_back(static_cast<uint8_t>(g.type));
+  if (index_valid_) index_[g.object_id].push_back(static_cast<uint32_t>(index));
+  return index;
+}
+
+void GaussianMap::reserve(size_t n) {
+  position_.reserve(3 * n);
+  log_scale_.reserve(3 * n);
+  rotation_.reserve(4 * n);
+  colour_.reserve(3 * n);
+  opacity_.reserve(n);
+  confidence_.reserve(n);
+  stable_.reserve(n);
+  object_id_.reserve(n);
+  birth_keyframe_.reserve(n);
+  type_.reserve(n);
+}
+
+size_t GaussianMap::remove_if(const std::vector<uint8_t>& remove) {
+  if (remove.size() != size())
+    throw std::invalid_argument("GaussianMap::remove_if: mask has " +
+                                std::to_string(remove.size()) + " entries for " +
+                                std::to_string(size()) + " Gaussians");
+  const size_t before = size();
+  compact(position_, 3, remove);
+  compact(log_scale_, 3, remove);
+  compact(rotation_, 4, remove);
+  compact(colour_, 3, remove);
+  compact(opacity_, 1, remove);
+  compact(confidence_, 1, remove);
+  compact(stable_, 1, remove);
+  compact(object_id_, 1, remove);
+  compact(birth_keyframe_, 1, remove);
+  compact(type_, 1, remove);
+  const size_t removed = before - size();
+  if (removed) invalidate_index();
+  return removed;
+}
+
+const std::vector<uint32_t>& GaussianMap::indices_of(uint32_t object_id) const {
+  if (!index_valid_) {
+    index_.clear();
+    for (size_t i = 0; i < object_id_.size(); ++i)
+      index_[object_id_[i]].push_back(static_cast<uint32_t>(i));
+    index_valid_ = true;
+  }
+  static const std::vector<uint32_t> kNone;
+  const auto it = index_.find(object_id);
+  return it == index_.end() ? kNone : it->second;
+}
+
+std::vector<uint32_t> GaussianMap::object_ids() const {
+  std::vector<uint32_t> ids = object_id_;
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  return ids;
+}
+
+size_t GaussianMap::relabel(uint32_t from, uint32_t to) {
+  if (from == to) return 0;
+  size_t n = 0;
+  for (uint32_t& id : object_id_) {
+    if (id == from) {
+      id = to;
+      ++n;
+    }
+  }
+  if (n) invalidate_index();
+  return n;
+}
+
+size_t GaussianMap::bytes_used() const {
+  return capacity_bytes(position_) + capacity_bytes(log_scale_) + capacity_bytes(rotation_) +
+         capacity_bytes(opacity_) + capacity_bytes(colour_) + capacity_bytes(confidence_) +
+         capacity_bytes(object_id_) + capacity_bytes(birth_keyframe_) + capacity_bytes(type_) +
+         capacity_bytes(stable_);
+}
+
+}  // namespace dqo::gs

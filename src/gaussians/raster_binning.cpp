@@ -1,0 +1,72 @@
+// Stage 2 of the CPU rasteriser: the visible Gaussians sorted once by depth (ties by index), then
+// dealt into their tiles in that order, so that every tile's list is depth-ordered, as 3DGS's sort
+// of (tile, depth) keys gives. The sort is a stable LSD radix sort on the depth's bit pattern
+// (positive IEEE floats order like their bits) over an index-ordered input: ties keep index order,
+// so the result depends on insertion order only through exact depth ties.
+
+#include <cstring>
+#include <type_traits>
+
+#include "raster_internal.h"
+
+namespace dqo::gs::detail {
+
+namespace {
+
+template <typename S>
+using KeyOf = std::conditional_t<sizeof(S) == 4, uint32_t, uint64_t>;
+
+template <typename S>
+void sort_by_depth(const std::vector<Splat<S>>& splats, std::vector<uint32_t>* ids) {
+  using Key = KeyOf<S>;
+  static_assert(sizeof(Key) == sizeof(S), "key and scalar must have the same size");
+  const size_t n = ids->size();
+  std::vector<Key> keys(n), keys_tmp(n);
+  std::vector<uint32_t> ids_tmp(n);
+  for (size_t i = 0; i < n; ++i) std::memcpy(&keys[i], &splats[(*ids)[i]].depth, sizeof(Key));
+  for (unsigned shift = 0; shift < 8 * sizeof(Key); shift += 8) {
+    size_t count[257] = {0};
+    for (size_t i = 0; i < n; ++i) ++count[((keys[i] >> shift) & 0xff) + 1];
+    if (count[((keys.empty() ? 0 : keys[0]) >> shift & 0xff) + 1] == n) continue;  // one bucket
+    for (int b = 0; b < 256; ++b) count[b + 1] += count[b];
+    for (size_t i = 0; i < n; ++i) {
+      const size_t dst = count[(keys[i] >> shift) & 0xff]++;
+      keys_tmp[dst] = keys[i];
+      ids_tmp[dst] = (*ids)[i];
+    }
+    keys.swap(keys_tmp);
+    ids->swap(ids_tmp);
+  }
+}
+
+}  // namespace
+
+template <typename S>
+void bin_gaussians(const ProjectedSet<S>& projected, int width, int height, TileBins* bins) {
+  bins->tiles_x = (width + kTileSize - 1) / kTileSize;
+  bins->tiles_y = (height + kTileSize - 1) / kTileSize;
+  const size_t tiles = static_cast<size_t>(bins->tiles_x) * bins->tiles_y;
+
+  std::vector<uint32_t> order = projected.visible_ids;
+  sort_by_depth(projected.splats, &order);
+
+  bins->offsets.assign(tiles + 1, 0);
+  for (uint32_t id : order) {
+    const PixelBox& r = projected.tile_rect[id];
+    for (int ty = r.y0; ty <= r.y1; ++ty)
+      for (int tx = r.x0; tx <= r.x1; ++tx) ++bins->offsets[ty * bins->tiles_x + tx + 1];
+  }
+  for (size_t t = 0; t < tiles; ++t) bins->offsets[t + 1] += bins->offsets[t];
+  bins->ids.resize(bins->offsets[tiles]);
+  std::vector<uint32_t> cursor(bins->offsets.begin(), bins->offsets.end() - 1);
+  for (uint32_t id : order) {
+    const PixelBox& r = projected.tile_rect[id];
+    for (int ty = r.y0; ty <= r.y1; ++ty)
+      for (int tx = r.x0; tx <= r.x1; ++tx) bins->ids[cursor[ty * bins->tiles_x + tx]++] = id;
+  }
+}
+
+template void bin_gaussians<float>(const ProjectedSet<float>&, int, int, TileBins*);
+template void bin_gaussians<double>(const ProjectedSet<double>&, int, int, TileBins*);
+
+}  // namespace dqo::gs::detail

@@ -1,0 +1,159 @@
+#pragma once
+// Internals of the CPU rasteriser shared by its stage files: the per-Gaussian projection results,
+// the tile bins, the state kept for the backward pass, and a small fork-join helper.
+// Stages: raster_projection.cpp → raster_binning.cpp → raster_forward.cpp (→ raster_backward.cpp),
+// sequenced by cpu_rasteriser.cpp.
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <thread>
+#include <vector>
+
+#include "dqo_map/gaussians/detail/cpu_rasteriser.h"
+#include "dqo_map/gaussians/math/alpha.h"
+#include "dqo_map/gaussians/math/project_gaussian.h"
+
+namespace dqo::gs::detail {
+
+constexpr int kTileSize = 16;
+constexpr int kTilePixels = kTileSize * kTileSize;
+// Below this accumulated alpha the normalised depth is 0 (and passes no gradient).
+constexpr double kNormaliseMinAlpha = 1e-6;
+// Images up to this size (the splats store rows in 16 bits).
+constexpr int kMaxImageSide = 32767;
+
+struct PixelBox {
+  int x0, y0, x1, y1;  // inclusive; empty when x0 > x1 or y0 > y1
+};
+
+// What the compositing loops read of one visible Gaussian, packed so that one lookup is one or
+// two cache lines (the tiles visit Gaussians in depth order, i.e. at random in memory).
+template <typename S>
+struct alignas(8 * sizeof(S) <= 32 ? 64 : 128) Splat {
+  Vec2<S> mean2d;
+  Sym2<S> conic;
+  S opacity;
+  Vec3<S> colour;
+  S depth;      // camera-frame z of the mean
+  S min_power;  // powers below this give α < 1/255 for sure (skip the exp)
+  uint32_t object_id;
+  uint16_t counts_for_ins;  // OG of settings.ins_object
+  int16_t y0, y1;           // rows (clipped to the image) where α ≥ 1/255 is possible
+};
+
+// Projection of every Gaussian, [N] each; visible[i] == 0 for culled ones (other fields undefined).
+template <typename S>
+struct ProjectedSet {
+  std::vector<Splat<S>> splats;
+  std::vector<PixelBox> tile_rect;  // tiles touched by the 3σ square, inclusive
+  std::vector<uint8_t> visible;
+  std::vector<uint32_t> visible_ids;  // indices with visible != 0, ascending
+};
+
+// Per tile, the Gaussians that touch it in depth order (ties by index): ids[offsets[t],
+// offsets[t + 1]).
+struct TileBins {
+  int tiles_x = 0, tiles_y = 0;
+  std::vector<uint32_t> offsets;
+  std::vector<uint32_t> ids;
+};
+
+template <typename S>
+class CpuRenderState final : public RenderState {
+ public:
+  size_t gaussian_count = 0;
+  int width = 0, height = 0;
+  ProjectedSet<S> projected;
+  TileBins bins;
+  std::vector<S> t_final;           // [P] transmittance after the last contributor
+  std::vector<uint32_t> n_contrib;  // [P] list position of the last contributor + 1 (0: none)
+  std::vector<S> depth_raw;         // [P] Σ T α z, before any normalisation
+};
+
+template <typename S>
+CameraView<S> make_camera_view(const PinholeCamera& camera, const SE3& T_cw, float near) {
+  CameraView<S> view;
+  view.K = {S(camera.fx), S(camera.fy), S(camera.cx), S(camera.cy), camera.width, camera.height};
+  const Eigen::Matrix3d R = T_cw.rotation();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) view.R_cw.m[i][j] = S(R(i, j));
+  view.t_cw = {S(T_cw.translation().x()), S(T_cw.translation().y()), S(T_cw.translation().z())};
+  view.near = S(near);
+  return view;
+}
+
+// Stage entry points (explicitly instantiated for float and double in their files).
+template <typename S>
+void project_gaussians(const GaussianArrays<S>& g, const CameraView<S>& cam,
+                       const RenderSettings& settings, int threads, ProjectedSet<S>* out);
+template <typename S>
+void bin_gaussians(const ProjectedSet<S>& projected, int width, int height, TileBins* bins);
+template <typename S>
+void composite_forward(const RenderSettings& settings, int threads, const ImageBuffers<S>& out,
+                       CpuRenderState<S>* state);
+template <typename S>
+void composite_backward(const GaussianArrays<S>& g, const CameraView<S>& cam,
+                        const RenderSettings& settings, int threads, const CpuRenderState<S>& state,
+                        const ImageGradients<S>& grad_out, const AttributeGradients<S>& grad);
+
+// ---------------------------------------------------------------- tile rows
+// Pixels of a tile are visited through one 16-bit mask per row (bit c: column c of the tile).
+static_assert(kTileSize == 16, "row masks are 16 bits wide");
+
+// The columns [xa, xb] of row y that a splat can reach (α ≥ 1/255 needs power ≥ min_power), within
+// the tile's columns [tx0, tx1], as a mask; 0 where none.
+template <typename S>
+inline uint32_t splat_row_mask(const Splat<S>& s, int y, int tx0, int tx1) {
+  S lo, hi;
+  if (!power_row_span(s.conic, s.mean2d.y - S(y), s.min_power, &lo, &hi)) return 0;
+  // x = mean.x − dx; widened by a hair for round-off (the alpha test decides exactly).
+  const S fxa = std::ceil(s.mean2d.x - hi - S(1e-3)), fxb = std::floor(s.mean2d.x - lo + S(1e-3));
+  if (!(fxb >= S(tx0) && fxa <= S(tx1))) return 0;
+  const int xa = static_cast<int>(std::max(S(tx0), fxa)) - tx0;
+  const int xb = static_cast<int>(std::min(S(tx1), fxb)) - tx0;
+  return ((2u << (xb - xa)) - 1u) << xa;
+}
+
+// ---------------------------------------------------------------- threads
+inline int resolve_threads(int threads) {
+  if (threads > 0) return threads;
+  const unsigned hw = std::thread::hardware_concurrency();
+  return hw ? static_cast<int>(hw) : 1;
+}
+
+// Runs fn(t) for t in [0, threads) on `threads` threads (the caller's among them) and joins.
+template <typename F>
+void run_on_threads(int threads, F&& fn) {
+  if (threads <= 1) {
+    fn(0);
+    return;
+  }
+  std::vector<std::thread> pool;
+  pool.reserve(threads - 1);
+  for (int t = 1; t < threads; ++t) pool.emplace_back([&fn, t] { fn(t); });
+  fn(0);
+  for (std::thread& th : pool) th.join();
+}
+
+// fn(i) for i in [0, n), items handed out one at a time (results must not depend on which thread
+// ran an item).
+template <typename F>
+void parallel_for_dynamic(int threads, size_t n, F&& fn) {
+  std::atomic<size_t> next{0};
+  run_on_threads(std::min<int>(threads, static_cast<int>(std::max<size_t>(n, 1))), [&](int) {
+    for (size_t i = next.fetch_add(1); i < n; i = next.fetch_add(1)) fn(i);
+  });
+}
+
+// fn(begin, end) over contiguous chunks of [0, n) (elementwise work, any thread count).
+template <typename F>
+void parallel_for_chunks(int threads, size_t n, F&& fn) {
+  const size_t chunk = 4096;
+  const size_t chunks = (n + chunk - 1) / chunk;
+  parallel_for_dynamic(threads, chunks,
+                       [&](size_t c) { fn(c * chunk, std::min(n, (c + 1) * chunk)); });
+}
+
+}  // namespace dqo::gs::detail

@@ -1,0 +1,511 @@
+#include "dqo_map/gaussians/trainer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+namespace dqo::gs {
+namespace {
+
+bool valid_depth(float d) { return std::isfinite(d) && d > 0.f; }
+
+// Rotation (w, x, y, z) whose columns are the given orthonormal, right-handed axes.
+Eigen::Vector4f quaternion_of(const Eigen::Matrix3d& R) {
+  const Eigen::Quaterniond q(R);
+  return Eigen::Vector4f(static_cast<float>(q.w()), static_cast<float>(q.x()),
+                         static_cast<float>(q.y()), static_cast<float>(q.z()));
+}
+
+}  // namespace
+
+GaussianTrainer::GaussianTrainer(const Params& params, std::unique_ptr<Rasteriser> rasteriser)
+    : params_(params),
+      rasteriser_(rasteriser ? std::move(rasteriser) : make_cpu_rasteriser(0)),
+      adam_(params.adam),
+      rng_(params.seed) {}
+
+RenderSettings GaussianTrainer::settings(uint32_t ins_object) const {
+  RenderSettings s;
+  s.normalise_depth = params_.normalise_depth;
+  s.ins_object = ins_object;
+  return s;
+}
+
+void GaussianTrainer::render(const PinholeCamera& camera, const SE3& T_wc, RenderOutput* out,
+                             uint32_t ins_object) {
+  rasteriser_->forward(map_, camera, T_wc.inverse(), settings(ins_object), out, nullptr);
+}
+
+void GaussianTrainer::sync_state() {
+  adam_.resize_for(map_);
+  invisible_count_.resize(map_.size(), 0);
+  relabel_votes_.resize(map_.size(), 0);
+}
+
+KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
+  const auto t0 = std::chrono::steady_clock::now();
+  KeyframeReport report;
+  ++keyframe_count_;
+
+  StoredKeyframe kf;
+  kf.id = keyframe.id;
+  kf.camera = keyframe.camera;
+  kf.T_wc = keyframe.T_wc;
+  kf.rgb = to_float_rgb(keyframe.rgb);
+  kf.depth = std::move(keyframe.depth);
+  kf.labels = std::move(keyframe.labels);
+  if (kf.labels.empty()) kf.labels = LabelImage(kf.camera.width, kf.camera.height, 1, 0u);
+  {
+    std::vector<uint32_t> ids(kf.labels.data.begin(), kf.labels.data.end());
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    for (const uint32_t id : ids) {
+      if (id != 0) kf.objects.push_back(id);
+    }
+  }
+
+  // 1-2. Render what the map has, update visibility, add where it is missing or wrong.
+  const size_t relabelled_before = relabelled_;
+  if (map_.empty()) {
+    add_gaussians(kf, nullptr, &report);
+  } else {
+    RenderOutput out;
+    std::unique_ptr<RenderState> state;
+    rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0), &out, &state);
+    review_gaussians(kf, out, *state);
+    add_gaussians(kf, &out, &report);
+  }
+  sync_state();
+  report.relabelled = relabelled_ - relabelled_before;
+
+  window_.push_back(std::move(kf));
+  while (static_cast<int>(window_.size()) > std::max(1, params_.window)) window_.pop_front();
+
+  // 3. Optimise the unstable Gaussians over the window.
+  for (int it = 0; it < params_.iterations; ++it) {
+    const double loss = iterate(pick_keyframe());
+    if (it == 0) report.loss_first = loss;
+    report.loss_last = loss;
+    ++report.iterations;
+  }
+
+  // Stabilise.
+  auto& stable = map_.stable();
+  const auto& confidence = map_.confidences();
+  for (size_t i = 0; i < map_.size(); ++i) {
+    if (!stable[i] && confidence[i] >= params_.stable_confidence) {
+      stable[i] = 1;
+      ++report.became_stable;
+    }
+  }
+
+  // 4. Prune.
+  prune(&report);
+
+  report.num_gaussians = map_.size();
+  for (size_t i = 0; i < map_.size(); ++i) report.num_unstable += stable[i] ? 0 : 1;
+  report.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return report;
+}
+
+double GaussianTrainer::optimise(int iterations) {
+  if (window_.empty() || map_.empty()) return 0.0;
+  double loss = 0.0;
+  for (int it = 0; it < iterations; ++it) loss = iterate(pick_keyframe());
+  return loss;
+}
+
+const GaussianTrainer::StoredKeyframe& GaussianTrainer::pick_keyframe() {
+  const size_t n = window_.size();
+  if (params_.newest_share <= 0.f || n == 1) {
+    return window_[std::uniform_int_distribution<size_t>(0, n - 1)(rng_)];
+  }
+  if (std::uniform_real_distribution<float>(0.f, 1.f)(rng_) < params_.newest_share) {
+    return window_.back();
+  }
+  return window_[std::uniform_int_distribution<size_t>(0, n - 2)(rng_)];
+}
+
+// One backward pass with dL/d(rgb) = (1, [label = 0], [label != 0]) gives, per Gaussian, in its
+// colour gradient: its contribution to the view, Σ_p T_i α_i over the pixels it reaches, and how
+// much of it falls on background and on object pixels.
+void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderOutput& out,
+                                       const RenderState& state) {
+  const bool check_visibility = params_.max_invisible_keyframes > 0;
+  const bool check_labels = params_.relabel_fraction > 0.f;
+  if (!check_visibility && !check_labels) return;
+  const size_t n_pixels = kf.labels.data.size();
+  OutputGradients probe;
+  probe.rgb.resize(3 * n_pixels);
+  for (size_t p = 0; p < n_pixels; ++p) {
+    probe.rgb[3 * p] = 1.f;
+    probe.rgb[3 * p + 1] = kf.labels.data[p] == 0 ? 1.f : 0.f;
+    probe.rgb[3 * p + 2] = kf.labels.data[p] != 0 ? 1.f : 0.f;
+  }
+  MapGradients g;
+  g.resize_for(map_);
+  const SE3 T_cw = kf.T_wc.inverse();
+  rasteriser_->backward(map_, kf.camera, T_cw, settings(0), state, probe, &g);
+
+  const Eigen::Matrix3f R = T_cw.rotation().cast<float>();
+  const Eigen::Vector3f t = T_cw.translation().cast<float>();
+  const float* pos = map_.positions().data();
+  const auto& ids = map_.object_ids_per_gaussian();
+  const int w = kf.camera.width, h = kf.camera.height;
+  std::vector<uint8_t> relabel(map_.size(), 0);
+  std::vector<uint32_t> new_id(map_.size(), 0);
+  for (size_t i = 0; i < map_.size(); ++i) {
+    const Eigen::Vector3f p_c = R * Eigen::Vector3f(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]) + t;
+    if (p_c.z() < params_.min_depth) continue;
+    const int u = static_cast<int>(std::lround(kf.camera.fx * p_c.x() / p_c.z() + kf.camera.cx));
+    const int v = static_cast<int>(std::lround(kf.camera.fy * p_c.y() / p_c.z() + kf.camera.cy));
+    if (u < 0 || v < 0 || u >= w || v >= h) continue;
+    const size_t p = static_cast<size_t>(v) * w + u;
+    const float d = kf.depth.data[p];
+    if (!valid_depth(d) || p_c.z() > d + params_.depth_error) continue;  // occluded or unknown
+    const float contribution = g.colour[3 * i];
+    if (check_visibility) {
+      if (contribution < params_.min_contribution) {
+        if (invisible_count_[i] < UINT16_MAX) ++invisible_count_[i];
+      } else {
+        invisible_count_[i] = 0;
+      }
+    }
+    if (!check_labels) continue;
+    // A Gaussian on the measured surface whose contribution lies mostly on pixels of another
+    // label than its own, with its centre on such a pixel, votes to take that label.
+    const uint32_t label = kf.labels.data[p];
+    const float on_label = label == 0 ? g.colour[3 * i + 1] : g.colour[3 * i + 2];
+    const bool disagrees = label != ids[i] && contribution >= params_.min_contribution &&
+                           on_label >= params_.relabel_fraction * contribution &&
+                           std::abs(p_c.z() - d) <= params_.depth_error;
+    if (!disagrees) {
+      relabel_votes_[i] = 0;
+    } else if (++relabel_votes_[i] >= params_.relabel_keyframes) {
+      relabel[i] = 1;
+      new_id[i] = label;
+    }
+  }
+  relabel_gaussians(relabel, new_id);
+}
+
+// GaussianMap relabels whole objects only: a single Gaussian changes its ID by leaving the map and
+// coming back (appended) with the new one, keeping its attributes, confidence and stability.
+void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
+                                        const std::vector<uint32_t>& new_id) {
+  std::vector<GaussianInit> moved;
+  std::vector<float> confidence;
+  std::vector<uint8_t> stable;
+  for (size_t i = 0; i < which.size(); ++i) {
+    if (!which[i]) continue;
+    GaussianInit g;
+    g.position = Eigen::Map<const Eigen::Vector3f>(&map_.positions()[3 * i]);
+    g.log_scale = Eigen::Map<const Eigen::Vector3f>(&map_.log_scales()[3 * i]);
+    g.rotation = Eigen::Map<const Eigen::Vector4f>(&map_.rotations()[4 * i]);
+    g.colour = Eigen::Map<const Eigen::Vector3f>(&map_.colours()[3 * i]);
+    g.opacity = map_.opacities()[i];
+    g.object_id = new_id[i];
+    g.type = static_cast<GaussianType>(map_.types()[i]);
+    g.birth_keyframe = map_.birth_keyframes()[i];
+    moved.push_back(g);
+    confidence.push_back(map_.confidences()[i]);
+    stable.push_back(map_.stable()[i]);
+  }
+  if (moved.empty()) return;
+  relabelled_ += moved.size();
+  remove_if(which);
+  for (size_t k = 0; k < moved.size(); ++k) {
+    const size_t i = map_.add(moved[k]);
+    map_.confidences()[i] = confidence[k];
+    map_.stable()[i] = stable[k];
+  }
+  sync_state();
+}
+
+void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput* out,
+                                    KeyframeReport* report) {
+  const int w = kf.camera.width, h = kf.camera.height;
+  const size_t n = static_cast<size_t>(w) * h;
+  std::vector<uint8_t> missing(n, 1), error(n, 0);  // error: 1 geometry, 2 colour only
+  if (out) {
+    for (size_t p = 0; p < n; ++p) {
+      missing[p] = (1.f - out->alpha[p]) > params_.missing_transmittance;
+      if (missing[p]) continue;
+      const float d = kf.depth.data[p];
+      if (valid_depth(d) && std::abs(out->depth[p] - d) > params_.depth_error) {
+        error[p] = 1;
+        continue;
+      }
+      float dc = 0.f;
+      for (int c = 0; c < 3; ++c) dc += std::abs(out->rgb[3 * p + c] - kf.rgb.data[3 * p + c]);
+      if (dc / 3.f > params_.colour_error) error[p] = 2;
+    }
+    // Mask_geo also holds the pixels of object k where k's instance opacity is low.
+    const SE3 T_cw = kf.T_wc.inverse();
+    for (const uint32_t id : kf.objects) {
+      RenderOutput ins;
+      rasteriser_->forward(map_, kf.camera, T_cw, settings(id), &ins, nullptr);
+      for (size_t p = 0; p < n; ++p) {
+        if (kf.labels.data[p] == id && !missing[p] && ins.ins[p] < params_.ins_threshold) {
+          error[p] = 1;
+        }
+      }
+    }
+  }
+
+  std::uniform_real_distribution<float> uniform(0.f, 1.f);
+  const int stride = std::max(1, params_.missing_stride);
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const size_t p = static_cast<size_t>(v) * w + u;
+      const float d = kf.depth.data[p];
+      const bool usable = valid_depth(d) && d >= params_.min_depth && d <= params_.max_depth;
+      if (missing[p]) {
+        ++report->missing_pixels;
+        if (usable && u % stride == 0 && v % stride == 0) {
+          add_gaussian_at(kf, u, v, false);
+          ++report->added_missing;
+        }
+      } else if (error[p]) {
+        ++report->error_pixels;
+        if (usable && uniform(rng_) < params_.error_sample_rate) {
+          add_gaussian_at(kf, u, v, error[p] == 2 && params_.transparent_for_colour_error);
+          ++report->added_error;
+        }
+      }
+    }
+  }
+}
+
+void GaussianTrainer::add_gaussian_at(const StoredKeyframe& kf, int u, int v, bool transparent) {
+  const PinholeCamera& cam = kf.camera;
+  const int w = cam.width, h = cam.height;
+  const float d = kf.depth.data[static_cast<size_t>(v) * w + u];
+  const Eigen::Vector3d p_c = cam.back_project(u, v, d);
+
+  // Normal from the back-projected neighbours at ± r pixels, central differences where both sides
+  // are measured and on the same surface, one-sided otherwise; facing the camera without either.
+  const int r = std::max(1, params_.normal_radius_px);
+  auto neighbour = [&](int du, int dv, Eigen::Vector3d* q) {
+    const int uu = u + du, vv = v + dv;
+    if (uu < 0 || vv < 0 || uu >= w || vv >= h) return false;
+    const float dn = kf.depth.data[static_cast<size_t>(vv) * w + uu];
+    // Same surface: the depth step stays below what a 75° slope gives over r pixels.
+    if (!valid_depth(dn) || std::abs(dn - d) > 4.f * r * d / cam.fx + 0.01f) return false;
+    *q = cam.back_project(uu, vv, dn);
+    return true;
+  };
+  auto difference = [&](int du, int dv, Eigen::Vector3d* diff) {
+    Eigen::Vector3d a, b;
+    const bool has_a = neighbour(du, dv, &a), has_b = neighbour(-du, -dv, &b);
+    if (has_a && has_b) *diff = a - b;
+    else if (has_a) *diff = a - p_c;
+    else if (has_b) *diff = p_c - b;
+    else return false;
+    return true;
+  };
+  const Eigen::Vector3d ray = p_c.normalized();
+  Eigen::Vector3d n_c = -ray;
+  Eigen::Vector3d dx, dy;
+  if (difference(r, 0, &dx) && difference(0, r, &dy)) {
+    const Eigen::Vector3d c = dx.cross(dy);
+    if (c.norm() > 1e-12) n_c = c.normalized();
+  }
+  if (n_c.dot(ray) > 0.0) n_c = -n_c;
+
+  // Axes: t1 along the slope (the ray projected onto the surface), t2 = n × t1, n.
+  const double cos_view = std::clamp(-n_c.dot(ray), 1e-3, 1.0);
+  Eigen::Vector3d t1 = ray - ray.dot(n_c) * n_c;
+  if (t1.norm() < 1e-6) t1 = n_c.unitOrthogonal();
+  t1.normalize();
+  const Eigen::Vector3d t2 = n_c.cross(t1);
+  Eigen::Matrix3d R_c;
+  R_c << t1, t2, n_c;
+  const Eigen::Matrix3d R_w = kf.T_wc.rotation() * R_c;
+
+  const double f = 0.5 * (cam.fx + cam.fy);
+  const double sigma = params_.scale_factor * std::max(1, params_.missing_stride) * d / f;
+  const double stretch = std::min(1.0 / cos_view, static_cast<double>(params_.max_stretch));
+
+  GaussianInit g;
+  g.position = (kf.T_wc * p_c).cast<float>();
+  g.log_scale = Eigen::Vector3f(static_cast<float>(std::log(sigma * stretch)),
+                                static_cast<float>(std::log(sigma)),
+                                static_cast<float>(std::log(sigma * params_.flatness)));
+  g.rotation = quaternion_of(R_w);
+  const size_t p = static_cast<size_t>(v) * w + u;
+  g.colour = Eigen::Vector3f(kf.rgb.data[3 * p], kf.rgb.data[3 * p + 1], kf.rgb.data[3 * p + 2]);
+  g.object_id = kf.labels.data[p];
+  g.type = transparent ? GaussianType::kTransparent : GaussianType::kOpaque;
+  g.birth_keyframe = static_cast<uint32_t>(keyframe_count_ - 1);
+  map_.add(g);
+}
+
+double GaussianTrainer::iterate(const StoredKeyframe& kf) {
+  if (map_.empty()) return 0.0;
+  uint32_t object = 0;
+  if (params_.lambda_ins > 0.f && !kf.objects.empty()) {
+    object = kf.objects[std::uniform_int_distribution<size_t>(0, kf.objects.size() - 1)(rng_)];
+  }
+  const SE3 T_cw = kf.T_wc.inverse();
+  const RenderSettings s = settings(object);
+  RenderOutput out;
+  std::unique_ptr<RenderState> state;
+  rasteriser_->forward(map_, kf.camera, T_cw, s, &out, &state);
+
+  // The photometric and depth terms over the pixels of `weights`, into `og`.
+  const double l_ssim = params_.lambda_ssim;
+  auto image_terms = [&](const PixelWeights& weights, OutputGradients* og) {
+    double l = (1.0 - l_ssim) * l1_rgb_loss(out, kf.rgb, weights, 1.0 - l_ssim, og);
+    if (l_ssim > 0.0) l += l_ssim * ssim_loss(out, kf.rgb, weights, l_ssim, og);
+    if (params_.lambda_depth > 0.f) {
+      l += params_.lambda_depth * l1_depth_loss(out, kf.depth, weights, params_.lambda_depth, og);
+    }
+    return l;
+  };
+  auto ins_term = [&](OutputGradients* og) {
+    if (object == 0) return 0.0;
+    ImageF mask(kf.labels.width, kf.labels.height, 1, 0.f);
+    for (size_t p = 0; p < mask.data.size(); ++p) mask.data[p] = kf.labels.data[p] == object;
+    return params_.lambda_ins * ins_loss(out, mask, {}, params_.lambda_ins, og);
+  };
+
+  double loss = 0.0;
+  grad_.resize_for(map_);
+  if (!params_.train_per_label || kf.objects.empty()) {
+    OutputGradients og;
+    loss = image_terms({}, &og) + ins_term(&og);
+    rasteriser_->backward(map_, kf.camera, T_cw, s, *state, og, &grad_);
+  } else {
+    // Mask^{O_k} of METHOD.md §4: the background's Gaussians learn from background pixels only,
+    // the objects' from object pixels (and L_ins), so that neither is pulled over the other's
+    // pixels. Two backward passes over the one forward pass.
+    const size_t n_pixels = kf.labels.data.size();
+    PixelWeights background(n_pixels), objects(n_pixels);
+    for (size_t p = 0; p < n_pixels; ++p) {
+      background[p] = kf.labels.data[p] == 0 ? 1.f : 0.f;
+      objects[p] = 1.f - background[p];
+    }
+    OutputGradients og_bg, og_obj;
+    loss = image_terms(background, &og_bg);
+    loss += image_terms(objects, &og_obj) + ins_term(&og_obj);
+    rasteriser_->backward(map_, kf.camera, T_cw, s, *state, og_bg, &grad_);
+    grad_objects_.resize_for(map_);
+    rasteriser_->backward(map_, kf.camera, T_cw, s, *state, og_obj, &grad_objects_);
+    const auto& ids = map_.object_ids_per_gaussian();
+    auto take_rows = [&ids](std::vector<float>* dst, const std::vector<float>& src, size_t width) {
+      for (size_t i = 0; i < ids.size(); ++i) {
+        if (ids[i] == 0) continue;
+        std::copy_n(src.begin() + i * width, width, dst->begin() + i * width);
+      }
+    };
+    take_rows(&grad_.position, grad_objects_.position, 3);
+    take_rows(&grad_.log_scale, grad_objects_.log_scale, 3);
+    take_rows(&grad_.rotation, grad_objects_.rotation, 4);
+    take_rows(&grad_.opacity, grad_objects_.opacity, 1);
+    take_rows(&grad_.colour, grad_objects_.colour, 3);
+  }
+
+  // Step the unstable Gaussians that this view reached.
+  const size_t n = map_.size();
+  std::vector<uint8_t> update(n, 0);
+  const auto& stable = map_.stable();
+  auto any = [](const std::vector<float>& g, size_t i, size_t width) {
+    for (size_t k = 0; k < width; ++k) {
+      if (g[i * width + k] != 0.f) return true;
+    }
+    return false;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    if (stable[i]) continue;
+    update[i] = any(grad_.position, i, 3) || any(grad_.colour, i, 3) ||
+                any(grad_.log_scale, i, 3) || any(grad_.rotation, i, 4);
+  }
+  adam_.step(grad_, update, &map_);
+  auto& confidence = map_.confidences();
+  for (size_t i = 0; i < n; ++i) confidence[i] += update[i] ? 1.f : 0.f;
+  return loss;
+}
+
+void GaussianTrainer::prune(KeyframeReport* report) {
+  const size_t n = map_.size();
+  if (n == 0) return;
+  const uint32_t now = static_cast<uint32_t>(keyframe_count_ - 1);
+  const float max_log_scale = std::log(params_.max_scale);
+  const auto& stable = map_.stable();
+  const auto& birth = map_.birth_keyframes();
+  const auto& log_scale = map_.log_scales();
+  std::vector<uint8_t> remove(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    const float s = std::max({log_scale[3 * i], log_scale[3 * i + 1], log_scale[3 * i + 2]});
+    if (!stable[i] && now - birth[i] > static_cast<uint32_t>(params_.max_unstable_age)) {
+      remove[i] = 1;
+      ++report->pruned_stale;
+    } else if (s > max_log_scale) {
+      remove[i] = 1;
+      ++report->pruned_oversized;
+    } else if (params_.max_invisible_keyframes > 0 &&
+               invisible_count_[i] >= params_.max_invisible_keyframes) {
+      remove[i] = 1;
+      ++report->pruned_invisible;
+    }
+  }
+  remove_if(remove);
+}
+
+size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
+  sync_state();
+  const size_t removed = map_.remove_if(remove);
+  if (removed == 0) return 0;
+  adam_.remove_if(remove);
+  size_t out = 0;
+  for (size_t i = 0; i < remove.size(); ++i) {
+    if (remove[i]) continue;
+    invisible_count_[out] = invisible_count_[i];
+    relabel_votes_[out] = relabel_votes_[i];
+    ++out;
+  }
+  invisible_count_.resize(out);
+  relabel_votes_.resize(out);
+  return removed;
+}
+
+bool GaussianTrainer::set_keyframe_pose(uint32_t id, const SE3& T_wc) {
+  for (StoredKeyframe& kf : window_) {
+    if (kf.id == id) {
+      kf.T_wc = T_wc;
+      return true;
+    }
+  }
+  return false;
+}
+
+size_t GaussianTrainer::relabel(uint32_t from, uint32_t to) {
+  for (StoredKeyframe& kf : window_) {
+    bool changed = false;
+    for (uint32_t& l : kf.labels.data) {
+      if (l == from) {
+        l = to;
+        changed = true;
+      }
+    }
+    if (!changed) continue;
+    kf.objects.erase(std::remove(kf.objects.begin(), kf.objects.end(), from), kf.objects.end());
+    if (to != 0 && std::find(kf.objects.begin(), kf.objects.end(), to) == kf.objects.end()) {
+      kf.objects.insert(std::upper_bound(kf.objects.begin(), kf.objects.end(), to), to);
+    }
+  }
+  return map_.relabel(from, to);
+}
+
+void GaussianTrainer::set_map(GaussianMap map) {
+  map_ = std::move(map);
+  adam_.reset();
+  invisible_count_.assign(map_.size(), 0);
+  relabel_votes_.assign(map_.size(), 0);
+  sync_state();
+}
+
+}  // namespace dqo::gs

@@ -1,0 +1,187 @@
+// dqo_track: tracks the camera through an RGB-D dataset folder (the package's own format, TUM
+// RGB-D or Replica: whatever dqo::open_dataset reads) and writes the trajectory in TUM format. Runs
+// the same tracking stage as tracking_node (dqo::tracking::TrackingSession). Prints the median
+// tracking time per frame, the lost frames and, where the dataset has ground truth, the ATE.
+//
+//   dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N]
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <future>
+#include <string>
+#include <vector>
+
+#include "dqo_map/common/progress.h"
+#include "dqo_map/common/tum_trajectory.h"
+#include "dqo_map/eval/ate.h"
+#include "dqo_map/io/dataset_reader.h"
+#include "dqo_map/tracking/params_yaml.h"
+#include "dqo_map/tracking/tracking_session.h"
+
+namespace {
+
+constexpr char kUsage[] =
+    "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N]\n"
+    "  DATASET_DIR        own format (camera.yaml, rgb/), TUM RGB-D (rgb.txt, depth.txt) or Replica\n"
+    "  --out traj.txt     the estimated trajectory, TUM format (T_world_camera of tracked frames)\n"
+    "  --config FILE      tracking parameters (default: the built-in ones, as config/tracking.yaml)\n"
+    "  --frames N         track only the first N frames\n";
+
+struct Options {
+  std::string dataset;
+  std::string out;
+  std::string config;
+  int frames = -1;
+};
+
+int usage_error(const std::string& message) {
+  std::fprintf(stderr, "dqo_track: %s\n%s", message.c_str(), kUsage);
+  return 2;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  int positional = 0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
+    if (a == "-h" || a == "--help") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    } else if (a == "--out" || a == "--config" || a == "--frames") {
+      const char* v = value();
+      if (!v) return usage_error(a + " needs a value");
+      if (a == "--out") o.out = v;
+      if (a == "--config") o.config = v;
+      if (a == "--frames") {
+        char* end = nullptr;
+        const long n = std::strtol(v, &end, 10);
+        if (end == v || *end != '\0' || n < 1) return usage_error("--frames takes a whole number >= 1");
+        o.frames = static_cast<int>(n);
+      }
+    } else if (!a.empty() && a[0] == '-') {
+      return usage_error("unknown option " + a);
+    } else if (positional++ == 0) {
+      o.dataset = a;
+    } else {
+      return usage_error("unexpected argument " + a);
+    }
+  }
+  if (o.dataset.empty()) return usage_error("no dataset folder given");
+  if (o.out.empty()) return usage_error("--out is required");
+
+  // Check everything that can fail before the long part.
+  std::string error;
+  dqo::tracking::TrackingConfig config;
+  if (!o.config.empty()) {
+    const auto loaded = dqo::tracking::load_tracking_config(o.config, &error);
+    if (!loaded) {
+      std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
+      return 1;
+    }
+    config = *loaded;
+  }
+  const std::filesystem::path out_dir = std::filesystem::absolute(o.out).parent_path();
+  if (!std::filesystem::is_directory(out_dir)) {
+    std::fprintf(stderr, "dqo_track: the folder of --out (%s) does not exist\n", out_dir.c_str());
+    return 1;
+  }
+  dqo::DatasetReaderParams reader_params;
+  reader_params.load_meshes = false;
+  const auto reader = dqo::open_dataset(o.dataset, reader_params, &error);
+  if (!reader) {
+    std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
+    return 1;
+  }
+  const int total = o.frames > 0 ? std::min(o.frames, reader->num_frames()) : reader->num_frames();
+  if (total < 1) {
+    std::fprintf(stderr, "dqo_track: %s holds no frames\n", o.dataset.c_str());
+    return 1;
+  }
+  const dqo::PinholeCamera& camera = reader->info().camera;
+  std::fprintf(stderr, "dqo_track: %s dataset %s, %d frames of %dx%d\n", reader->format().c_str(),
+               o.dataset.c_str(), total, camera.width, camera.height);
+
+  dqo::tracking::TrackingSession session(config);
+  dqo::Trajectory estimate, ground_truth;
+  std::vector<double> ms;
+  int lost = 0, not_initialised = 0, relocalised = 0, skipped = 0;
+  dqo::ProgressBar progress("tracking", total);
+  // Reading (PNG decoding) of frame i + 1 overlaps tracking of frame i.
+  auto read = [&](int i) {
+    return std::async(std::launch::async, [&reader, i] {
+      std::string e;
+      auto frame = reader->read_frame(i, &e);
+      return std::make_pair(std::move(frame), e);
+    });
+  };
+  auto next = read(0);
+  for (int i = 0; i < total; ++i) {
+    auto [frame, read_error] = next.get();
+    if (i + 1 < total) next = read(i + 1);
+    if (!frame) {
+      std::fprintf(stderr, "\ndqo_track: frame %d: %s\n", i, read_error.c_str());
+      return 1;
+    }
+    if (frame->has_pose) ground_truth.emplace_back(frame->timestamp, frame->T_wc);
+    const dqo::tracking::RgbdInput input{frame->timestamp, &frame->rgb, &frame->depth};
+    const dqo::tracking::SessionResult r = session.track(camera, input);
+    if (r.skipped != dqo::tracking::SessionResult::Skip::kNone) {
+      ++skipped;
+      progress.update(i + 1);
+      continue;
+    }
+    if (r.reset) {
+      std::fprintf(stderr, "\ndqo_track: frame %d: time went back by %.3f s: tracking restarted\n", i,
+                   r.time_jump);
+    }
+    ms.push_back(r.track.milliseconds);
+    if (r.track.relocalised) ++relocalised;
+    switch (r.track.state) {
+      case dqo::tracking::TrackingState::kOk:
+        estimate.emplace_back(frame->timestamp, r.track.T_wc);
+        break;
+      case dqo::tracking::TrackingState::kLost:
+        ++lost;
+        break;
+      case dqo::tracking::TrackingState::kNotInitialised:
+        ++not_initialised;
+        break;
+    }
+    progress.update(i + 1);
+  }
+
+  if (!dqo::write_tum_trajectory(o.out, estimate, &error)) {
+    std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
+    return 1;
+  }
+  const dqo::tracking::Tracker* tracker = session.tracker();
+  std::printf("frames: %d (tracked %zu, lost %d, not initialised %d, skipped %d)\n", total,
+              estimate.size(), lost, not_initialised, skipped);
+  std::printf("relocalisations: %d\n", relocalised);
+  std::printf("keyframes: %zu tracker, %llu mapping; map points: %zu\n",
+              tracker ? tracker->num_keyframes() : size_t{0},
+              static_cast<unsigned long long>(session.keyframes()), tracker ? tracker->num_map_points() : size_t{0});
+  std::printf("wrote: %s\n", o.out.c_str());
+  if (ground_truth.size() >= 3 && estimate.size() >= 3) {
+    const auto ate = dqo::eval::compute_ate(estimate, ground_truth, dqo::eval::AteParams{}, &error);
+    if (ate) {
+      std::printf("ate_rmse_m: %.6f (%d poses; max %.6f)\n", ate->rmse_m, ate->matched, ate->max_m);
+    } else {
+      std::printf("ate: %s\n", error.c_str());
+    }
+  }
+  std::printf("lost_frames: %d\n", lost);
+  std::printf("tracking_ms_median: %.2f\n", median(ms));
+  return 0;
+}

@@ -1,0 +1,546 @@
+// The per-frame pipeline: dense alignment to the previous frame, feature tracking from the best
+// guess available (dense, then the motion model, then PnP against the last keyframe), pose-only
+// refinement fusing both, relocalisation when lost. The map side is in tracker_map.cpp.
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <unordered_set>
+
+#include "relocaliser.h"
+#include "tracker_impl.h"
+
+namespace dqo::tracking {
+
+const char* to_string(TrackingState state) {
+  switch (state) {
+    case TrackingState::kNotInitialised:
+      return "not_initialised";
+    case TrackingState::kOk:
+      return "ok";
+    case TrackingState::kLost:
+      return "lost";
+  }
+  return "unknown";
+}
+
+double g_prof[8] = {0};
+inline double cpu_ms() { timespec ts; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts); return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6; }
+#define PROF_T(x) const double x = cpu_ms()
+#define PROF_MS(a, b) ((b) - (a))
+struct ProfPrint { ~ProfPrint() { fprintf(stderr, "PROF extract %.0f pyramid %.0f dense %.0f features %.0f accept %.0f\n", g_prof[0], g_prof[1], g_prof[2], g_prof[3], g_prof[4]); } } g_prof_print;
+
+namespace {
+
+bool valid_input(const RgbdInput& input, const PinholeCamera& camera) {
+  return input.rgb != nullptr && input.depth != nullptr && input.rgb->channels == 3 &&
+         input.rgb->same_size(camera.width, camera.height) &&
+         input.depth->same_size(camera.width, camera.height) &&
+         input.rgb->data.size() == static_cast<size_t>(camera.width) * camera.height * 3 &&
+         input.depth->data.size() == static_cast<size_t>(camera.width) * camera.height;
+}
+
+// Enough to start a map: keypoints with depth, or (dense on) a depth image to align against.
+constexpr int kMinInitialKeypoints = 50;
+constexpr int kMinInitialDensePoints = 1000;
+
+}  // namespace
+
+Tracker::Impl::Impl(const PinholeCamera& camera, const TrackerParams& params)
+    : camera_(camera), params_(params), extractor_(params.orb) {
+  if (params_.local_ba.enabled && !params_.local_ba.synchronous)
+    ba_ = std::make_unique<LocalBaWorker>(camera_, params_.local_ba, params_.pose);
+}
+
+Tracker::Impl::~Impl() = default;  // the worker's destructor aborts and joins
+
+TrackResult Tracker::Impl::track(const RgbdInput& input) {
+  const auto start = std::chrono::steady_clock::now();
+  TrackResult result;
+  result.state = state_;
+  if (!valid_input(input, camera_)) {
+    // Nothing tracked, nothing changed; the pose stays the last one's.
+    if (last_ && state_ == TrackingState::kOk) result.T_wc = last_->T_wc;
+    return result;
+  }
+  apply_ba_results();
+  submit_local_ba();
+
+  TrackedFrame frame;
+  frame.number = ++frame_counter_;
+  PROF_T(t0);
+  if (params_.use_features) extractor_.extract(*input.rgb, *input.depth, &frame.features);
+  frame.map_points.assign(frame.features.size(), kNoId);
+  PROF_T(t1);
+  std::unique_ptr<RgbdPyramid> pyramid;
+  if (params_.use_dense)
+    pyramid = std::make_unique<RgbdPyramid>(camera_, *input.rgb, *input.depth, params_.dense);
+  PROF_T(t2);
+  g_prof[0] += PROF_MS(t0, t1);
+  g_prof[1] += PROF_MS(t1, t2);
+
+  const int features = static_cast<int>(frame.features.size());
+  switch (state_.load()) {
+    case TrackingState::kNotInitialised:
+      result = initialise(&frame, pyramid.get());
+      break;
+    case TrackingState::kOk:
+      result = track_frame(&frame, pyramid.get());
+      break;
+    case TrackingState::kLost:
+      result = track_lost(&frame);
+      break;
+  }
+  result.features = features;
+  last_pyramid_ = std::move(pyramid);
+  result.milliseconds =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+TrackResult Tracker::Impl::initialise(TrackedFrame* frame, const RgbdPyramid* pyramid) {
+  TrackResult result;
+  int with_depth = 0;
+  for (size_t i = 0; i < frame->features.size(); ++i) with_depth += frame->features.has_depth(i);
+  const bool features_enough = params_.use_features && with_depth >= kMinInitialKeypoints;
+  const bool dense_enough = pyramid != nullptr &&
+                            pyramid->valid_points(pyramid->finest_level()) >= kMinInitialDensePoints;
+  if (!features_enough && !dense_enough) return result;  // still kNotInitialised
+
+  // The world frame is the first camera's.
+  frame->T_wc = SE3();
+  create_keyframe(frame);
+  first_keyframe_ = last_keyframe_;
+  state_ = TrackingState::kOk;
+  failures_ = 0;
+  finish_frame(frame, SE3(), false);
+  result.state = TrackingState::kOk;
+  result.T_wc = SE3();
+  result.new_keyframe = true;
+  return result;
+}
+
+TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* pyramid) {
+  TrackResult result;
+  const SE3 T_wc_mm = last_->T_wc * (has_velocity_ ? velocity_ : SE3());
+  PROF_T(a0);
+  const std::optional<DensePrior> prior = align_to_last(pyramid);
+  PROF_T(a1);
+  const FeatureOutcome features = track_features(frame, prior ? &*prior : nullptr, T_wc_mm);
+  PROF_T(a2);
+  g_prof[2] += PROF_MS(a0, a1);
+  g_prof[3] += PROF_MS(a1, a2);
+
+  if (features.ok) {
+    accept(frame, features.T_wc, features.inliers, true, true, &result);
+    return result;
+  }
+  if (prior) {
+    // Features too few (a plain scene, a fast turn): the dense alignment holds the pose, fused
+    // with whatever features agreed with it.
+    const SE3 T_wc = features.used_prior ? features.T_wc : prior->T_w_ref * prior->T_ref_cur;
+    accept(frame, T_wc, features.inliers, false, true, &result);
+    return result;
+  }
+  // Neither held: try to relocalise at once rather than drift on the motion model.
+  SE3 T_wc;
+  int inliers = 0;
+  if (relocalise_frame(frame, &T_wc, &inliers)) {
+    has_velocity_ = false;
+    accept(frame, T_wc, inliers, true, false, &result);
+    return result;
+  }
+  ++failures_;
+  std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
+  if (failures_ >= params_.frames_to_lost) {
+    state_ = TrackingState::kLost;
+    has_velocity_ = false;
+    result.state = TrackingState::kLost;
+  } else {
+    result.state = TrackingState::kOk;
+    result.T_wc = T_wc_mm;
+    result.predicted = true;
+  }
+  finish_frame(frame, T_wc_mm, false);
+  return result;
+}
+
+TrackResult Tracker::Impl::track_lost(TrackedFrame* frame) {
+  TrackResult result;
+  result.state = TrackingState::kLost;
+  SE3 T_wc;
+  int inliers = 0;
+  if (!relocalise_frame(frame, &T_wc, &inliers)) return result;
+  state_ = TrackingState::kOk;
+  has_velocity_ = false;
+  last_relocalised_frame_ = frame->number;
+  accept(frame, T_wc, inliers, true, false, &result);
+  result.relocalised = true;
+  return result;
+}
+
+void Tracker::Impl::accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
+                           bool update_velocity, TrackResult* result) {
+  failures_ = 0;
+  frame->T_wc = T_wc;
+  count_found(*frame);
+  last_inliers_ = inliers;
+  PROF_T(k0);
+  if (need_keyframe(*frame, inliers, features_ok)) {
+    create_keyframe(frame);
+    result->new_keyframe = true;
+  }
+  PROF_T(k1);
+  g_prof[4] += PROF_MS(k0, k1);
+  finish_frame(frame, T_wc, update_velocity);
+  result->state = TrackingState::kOk;
+  result->T_wc = T_wc;
+  result->inliers = inliers;
+}
+
+void Tracker::Impl::finish_frame(TrackedFrame* frame, const SE3& T_wc, bool update_velocity) {
+  frame->T_wc = T_wc;
+  if (update_velocity && last_) {
+    velocity_ = last_->T_wc.inverse() * T_wc;
+    has_velocity_ = true;
+  }
+  frame->reference_keyframe = reference_keyframe_;
+  if (const KeyFrame* ref = map_.keyframe(reference_keyframe_))
+    frame->T_ref_frame = ref->T_wc.inverse() * T_wc;
+  last_ = std::move(*frame);
+}
+
+std::optional<DensePrior> Tracker::Impl::align_to_last(const RgbdPyramid* pyramid) {
+  if (pyramid == nullptr || !last_pyramid_ || !last_) return std::nullopt;
+  const DenseResult dense =
+      align_dense(*last_pyramid_, *pyramid, has_velocity_ ? velocity_ : SE3(), params_.dense);
+  if (!dense.ok) return std::nullopt;
+  DensePrior prior;
+  prior.T_w_ref = last_->T_wc;
+  prior.T_ref_cur = dense.T_ref_cur;
+  prior.information = params_.pose.dense_prior_weight * dense.information;
+  return prior;
+}
+
+FeatureOutcome Tracker::Impl::track_features(TrackedFrame* frame, const DensePrior* prior,
+                                             const SE3& T_wc_mm) {
+  FeatureOutcome out;
+  if (!params_.use_features || map_.num_keyframes() == 0 || frame->features.size() == 0)
+    return out;
+  const int min_matches = params_.search.min_matches;
+  update_local_map(*last_);
+
+  // The dense pose is good to a pixel or so: search the local map from it straight away.
+  SE3 guess = prior != nullptr ? prior->T_w_ref * prior->T_ref_cur : T_wc_mm;
+  int matched = prior != nullptr ? search_local_map(frame, guess) : 0;
+  if (matched < min_matches) {
+    // No dense pose, or one the map disagrees with: frame to frame from the motion model, else
+    // PnP against the last keyframe; the local map is searched from the pose they give.
+    std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
+    if (!track_motion_model(frame, T_wc_mm, &guess)) {
+      std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
+      if (match_with_pnp(frame, &guess) == 0) return out;
+    }
+    update_local_map(*frame);
+    search_local_map(frame, guess);
+  }
+
+  Refinement fused = refine(*frame, guess, prior, {});
+  out.ran = true;
+  out.used_prior = prior != nullptr;
+  if (prior != nullptr && fused.pose.prior_chi2 > params_.pose.max_prior_chi2) {
+    // Dense and features disagree: believe the features if they hold by themselves, else dense.
+    Refinement alone = refine(*frame, guess, nullptr, {});
+    if (alone.map_inliers >= 2 * params_.min_inliers_ok) {
+      fused = std::move(alone);
+      out.used_prior = false;
+    } else {
+      std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
+      out.used_prior = false;
+      return out;  // the caller takes the dense pose
+    }
+  }
+  keep_inliers(frame, fused);
+  out.T_wc = fused.pose.T_wc;
+  out.inliers = fused.map_inliers;
+  out.ok = out.inliers >= params_.min_inliers_ok;
+  return out;
+}
+
+bool Tracker::Impl::track_motion_model(TrackedFrame* frame, const SE3& T_wc_mm, SE3* T_wc) {
+  // Without a velocity the prediction is only "no motion": ORB-SLAM2 goes to the reference
+  // keyframe directly, and so does this.
+  if (!has_velocity_) return false;
+  const int min_matches = params_.search.min_matches;
+  std::vector<PoseObservation> temporary;
+  int matched = match_last_frame(frame, T_wc_mm, params_.search.frame_radius_px, &temporary);
+  if (matched < min_matches) {
+    std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
+    temporary.clear();
+    matched = match_last_frame(frame, T_wc_mm, 2.0 * params_.search.frame_radius_px, &temporary);
+  }
+  if (matched < min_matches) return false;
+  const Refinement refined = refine(*frame, T_wc_mm, nullptr, temporary);
+  // Wrong matches from a wrong prediction can still agree on some wrong pose; right ones mostly
+  // survive the outlier rounds.
+  if (refined.map_inliers < 10 || 2 * refined.pose.inliers < matched) return false;
+  keep_inliers(frame, refined);
+  *T_wc = refined.pose.T_wc;
+  return true;
+}
+
+int Tracker::Impl::match_last_frame(TrackedFrame* frame, const SE3& T_wc_guess, double radius,
+                                    std::vector<PoseObservation>* temporary) {
+  const TrackedFrame& last = *last_;
+  std::vector<ProjectionCandidate> candidates;
+  candidates.reserve(last.features.size());
+  for (size_t k = 0; k < last.features.size(); ++k) {
+    ProjectionCandidate c;
+    const MapPoint* p = map_.map_point(last.map_points[k]);
+    if (p != nullptr) {
+      c.map_point = p->id;
+      c.p_w = p->p_w;
+    } else if (last.features.has_depth(static_cast<int>(k))) {
+      // The last frame's own depth: a point for this step only (ORB-SLAM2's visual odometry
+      // points), never added to the map.
+      c.p_w = last.T_wc * last.features.point_c(static_cast<int>(k), camera_);
+    } else {
+      continue;
+    }
+    c.descriptor = last.features.descriptors[k];
+    c.level = last.features.keypoints[k].octave;
+    c.angle = last.features.keypoints[k].angle;
+    candidates.push_back(c);
+  }
+  ProjectionSearch search;
+  search.radius_px = radius;
+  search.check_orientation = true;
+  const std::vector<Match> matches = search_by_projection(
+      frame->features, camera_, extractor_.scales(), T_wc_guess, candidates, search, nullptr,
+      nullptr);
+  int n = 0;
+  for (const Match& m : matches) {
+    const ProjectionCandidate& c = candidates[m.candidate];
+    if (c.map_point != kNoId) {
+      frame->map_points[m.keypoint] = c.map_point;
+    } else {
+      const Keypoint& k = frame->features.keypoints[m.keypoint];
+      PoseObservation o;
+      o.p_w = c.p_w;
+      o.uv = k.uv.cast<double>();
+      o.depth = k.depth;
+      o.inv_sigma = extractor_.scales().inv_scale[k.octave];
+      o.depth_sigma = match_depth_sigma(k.depth, k.depth_slope,
+                                        extractor_.scales().scale[k.octave], params_.pose);
+      temporary->push_back(o);
+    }
+    ++n;
+  }
+  return n;
+}
+
+int Tracker::Impl::match_with_pnp(TrackedFrame* frame, SE3* T_wc) {
+  for (const uint64_t id : {last_keyframe_, reference_keyframe_}) {
+    const KeyFrame* kf = map_.keyframe(id);
+    if (kf == nullptr) continue;
+    const PnpResult pnp = pnp_against_keyframe(frame->features, *kf, map_, camera_,
+                                               extractor_.scales(), params_.pose,
+                                               params_.min_inliers_ok);
+    if (!pnp.ok) continue;
+    for (const auto& [k, point] : pnp.matches) frame->map_points[k] = point;
+    *T_wc = pnp.T_wc;
+    return static_cast<int>(pnp.matches.size());
+  }
+  return 0;
+}
+
+void Tracker::Impl::update_local_map(const TrackedFrame& source) {
+  // Keyframes sharing points with the frame, the most shared first, then their neighbours
+  // (ORB-SLAM2's UpdateLocalKeyFrames); the heaviest becomes the reference keyframe.
+  std::unordered_map<uint64_t, int> shared;
+  for (const uint64_t id : source.map_points) {
+    const MapPoint* p = map_.map_point(id);
+    if (p == nullptr) continue;
+    for (const auto& [kf, index] : p->observations) ++shared[kf];
+  }
+  std::vector<std::pair<int, uint64_t>> ranked;
+  for (const auto& [kf, n] : shared) ranked.emplace_back(n, kf);
+  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second > b.second;
+  });
+  if (ranked.empty()) {
+    if (map_.keyframe(reference_keyframe_) == nullptr) return;  // keep the old local map
+    ranked.emplace_back(1, reference_keyframe_);
+  }
+  reference_keyframe_ = ranked.front().second;
+
+  const size_t limit = static_cast<size_t>(std::max(1, params_.search.local_map_keyframes));
+  local_keyframes_.clear();
+  std::unordered_set<uint64_t> in_local;
+  for (const auto& [n, kf] : ranked) {
+    if (local_keyframes_.size() >= limit) break;
+    if (in_local.insert(kf).second) local_keyframes_.push_back(kf);
+  }
+  const size_t direct = local_keyframes_.size();
+  for (size_t i = 0; i < direct && local_keyframes_.size() < limit; ++i) {
+    for (const uint64_t n : map_.covisible(local_keyframes_[i], 10)) {
+      if (local_keyframes_.size() >= limit) break;
+      if (in_local.insert(n).second) local_keyframes_.push_back(n);
+    }
+  }
+
+  local_points_.clear();
+  std::unordered_set<uint64_t> seen;
+  seen.reserve(8192);
+  for (const uint64_t kf_id : local_keyframes_) {
+    const KeyFrame* kf = map_.keyframe(kf_id);
+    if (kf == nullptr) continue;
+    for (const uint64_t id : kf->map_points)
+      if (id != kNoId && seen.insert(id).second) local_points_.push_back(id);
+  }
+}
+
+int Tracker::Impl::search_local_map(TrackedFrame* frame, const SE3& T_wc) {
+  std::unordered_set<uint64_t> matched;
+  std::vector<char> taken(frame->features.size(), 0);
+  for (size_t k = 0; k < frame->map_points.size(); ++k) {
+    if (frame->map_points[k] == kNoId) continue;
+    matched.insert(frame->map_points[k]);
+    taken[k] = 1;
+  }
+  std::vector<ProjectionCandidate> candidates;
+  candidates.reserve(local_points_.size());
+  for (const uint64_t id : local_points_) {
+    if (matched.count(id) != 0) continue;
+    const MapPoint* p = map_.map_point(id);
+    if (p == nullptr) continue;
+    ProjectionCandidate c;
+    c.map_point = id;
+    c.p_w = p->p_w;
+    c.descriptor = p->descriptor;
+    c.normal = p->normal;
+    c.min_distance = p->min_distance;
+    c.max_distance = p->max_distance;
+    candidates.push_back(c);
+  }
+  ProjectionSearch search;
+  search.radius_px = params_.search.local_map_radius_px;
+  // Soon after relocalisation the pose is rougher: a wider window (ORB-SLAM2).
+  if (frame->number < last_relocalised_frame_ + 2) search.radius_px *= 2.0;
+  search.levels_below = 1;
+  search.levels_above = 0;
+  search.ratio = params_.search.local_map_ratio;
+  search.check_orientation = false;
+  search.check_viewing = true;
+  std::vector<char> in_frustum;
+  const std::vector<Match> matches =
+      search_by_projection(frame->features, camera_, extractor_.scales(), T_wc, candidates,
+                           search, &taken, &in_frustum);
+  for (size_t c = 0; c < candidates.size(); ++c)
+    if (in_frustum[c]) ++map_.map_point(candidates[c].map_point)->visible;
+  for (const Match& m : matches) frame->map_points[m.keypoint] = candidates[m.candidate].map_point;
+  int n = 0;
+  for (const uint64_t id : frame->map_points) n += id != kNoId;
+  return n;
+}
+
+Refinement Tracker::Impl::refine(const TrackedFrame& frame, const SE3& T_wc_guess,
+                                 const DensePrior* prior,
+                                 const std::vector<PoseObservation>& extra) const {
+  Refinement out;
+  std::vector<PoseObservation> observations;
+  observations.reserve(frame.map_points.size() + extra.size());
+  for (size_t k = 0; k < frame.map_points.size(); ++k) {
+    const MapPoint* p = map_.map_point(frame.map_points[k]);
+    if (p == nullptr) continue;
+    const Keypoint& kp = frame.features.keypoints[k];
+    PoseObservation o;
+    o.p_w = p->p_w;
+    o.uv = kp.uv.cast<double>();
+    o.depth = kp.depth;
+    o.inv_sigma = extractor_.scales().inv_scale[kp.octave];
+    o.depth_sigma = match_depth_sigma(kp.depth, kp.depth_slope,
+                                      extractor_.scales().scale[kp.octave], params_.pose);
+    observations.push_back(o);
+    out.keypoints.push_back(static_cast<int>(k));
+  }
+  for (const PoseObservation& o : extra) {
+    observations.push_back(o);
+    out.keypoints.push_back(-1);
+  }
+  out.pose = optimise_pose(T_wc_guess, observations, camera_, prior, params_.pose);
+  for (size_t i = 0; i < out.keypoints.size(); ++i)
+    out.map_inliers += out.keypoints[i] >= 0 && out.pose.inlier[i];
+  return out;
+}
+
+void Tracker::Impl::keep_inliers(TrackedFrame* frame, const Refinement& refinement) const {
+  std::vector<char> keep(frame->map_points.size(), 0);
+  for (size_t i = 0; i < refinement.keypoints.size(); ++i)
+    if (refinement.keypoints[i] >= 0 && refinement.pose.inlier[i]) keep[refinement.keypoints[i]] = 1;
+  for (size_t k = 0; k < frame->map_points.size(); ++k)
+    if (!keep[k]) frame->map_points[k] = kNoId;
+}
+
+bool Tracker::Impl::relocalise_frame(TrackedFrame* frame, SE3* T_wc, int* inliers) {
+  if (!params_.use_features || map_.num_keyframes() == 0 || frame->features.size() == 0)
+    return false;
+  const PnpResult pnp = relocalise(frame->features, map_, relocalisation_candidates(), camera_,
+                                   extractor_.scales(), params_.pose, params_.reloc);
+  if (!pnp.ok) return false;
+  std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
+  for (const auto& [k, point] : pnp.matches) frame->map_points[k] = point;
+  update_local_map(*frame);
+  last_relocalised_frame_ = frame->number;
+  search_local_map(frame, pnp.T_wc);
+  const Refinement refined = refine(*frame, pnp.T_wc, nullptr, {});
+  if (refined.map_inliers < params_.reloc.min_inliers) {
+    std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
+    return false;
+  }
+  keep_inliers(frame, refined);
+  *T_wc = refined.pose.T_wc;
+  *inliers = refined.map_inliers;
+  return true;
+}
+
+std::vector<uint64_t> Tracker::Impl::relocalisation_candidates() {
+  // The last reference keyframe and its neighbours (where the camera most likely is), then the
+  // rest of the map in turns: each lost frame tries the next slice, so every keyframe gets its
+  // chance while the cost per frame stays bounded.
+  const size_t n = static_cast<size_t>(std::max(1, params_.reloc.candidate_keyframes));
+  std::vector<uint64_t> out;
+  std::unordered_set<uint64_t> chosen;
+  auto add = [&](uint64_t id) {
+    if (out.size() < n && map_.keyframe(id) != nullptr && chosen.insert(id).second)
+      out.push_back(id);
+  };
+  add(reference_keyframe_);
+  for (const uint64_t id : map_.covisible(reference_keyframe_, n / 2)) add(id);
+  std::vector<uint64_t> all;
+  all.reserve(map_.num_keyframes());
+  for (const auto& [id, kf] : map_.keyframes()) all.push_back(id);
+  std::sort(all.begin(), all.end());
+  for (size_t tried = 0; tried < all.size() && out.size() < n; ++tried)
+    add(all[reloc_cursor_++ % all.size()]);
+  return out;
+}
+
+// ---------------------------------------------------------------- the public class
+
+Tracker::Tracker(const PinholeCamera& camera, const TrackerParams& params)
+    : impl_(std::make_unique<Impl>(camera, params)) {}
+Tracker::~Tracker() = default;
+
+TrackResult Tracker::track(const RgbdInput& input) { return impl_->track(input); }
+void Tracker::reset() { impl_->reset(); }
+void Tracker::register_frame(uint64_t id) { impl_->register_frame(id); }
+std::vector<CorrectedPose> Tracker::corrected_frames() { return impl_->corrected_frames(); }
+void Tracker::wait_for_mapping() { impl_->wait_for_mapping(); }
+TrackingState Tracker::state() const { return impl_->state_.load(); }
+size_t Tracker::num_keyframes() const { return impl_->map_.num_keyframes(); }
+size_t Tracker::num_map_points() const { return impl_->map_.num_map_points(); }
+uint64_t Tracker::local_ba_runs() const { return impl_->ba_runs_.load(); }
+
+}  // namespace dqo::tracking

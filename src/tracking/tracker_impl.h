@@ -1,0 +1,135 @@
+#pragma once
+// The Tracker's private state and its stages. Split over tracker.cpp (the per-frame pipeline:
+// dense alignment, feature tracking, relocalisation) and tracker_map.cpp (the tracker's own map:
+// keyframe policy, map points, local BA hand-over, registered frames).
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "dqo_map/tracking/dense_alignment.h"
+#include "dqo_map/tracking/tracker.h"
+#include "local_ba.h"
+#include "map_store.h"
+#include "matching.h"
+#include "orb_frame.h"
+#include "pose_optimiser.h"
+
+namespace dqo::tracking {
+
+// One frame as tracking sees it.
+struct TrackedFrame {
+  uint64_t number = 0;  // the tracker's frame counter
+  OrbFrame features;
+  std::vector<uint64_t> map_points;  // per keypoint: its matched map point (inliers), or kNoId
+  SE3 T_wc;
+  uint64_t reference_keyframe = kNoId;
+  SE3 T_ref_frame;  // the pose relative to the reference keyframe, kept across BA corrections
+};
+
+// How the features of one frame came out.
+struct FeatureOutcome {
+  bool ran = false;     // the optimiser had something to work on
+  bool ok = false;      // enough inliers: the features hold by themselves
+  SE3 T_wc;
+  int inliers = 0;
+  bool used_prior = false;  // T_wc is the fused solution (features plus the dense prior)
+};
+
+// A pose optimisation over a frame's matches, with the keypoint of each observation (-1 for
+// the temporary points of the last frame, which never enter the map).
+struct Refinement {
+  PoseOptimisationResult pose;
+  std::vector<int> keypoints;  // parallel to the observations
+  int map_inliers = 0;         // inliers that are map points
+};
+
+struct RegisteredFrame {
+  uint64_t reference_keyframe = kNoId;
+  SE3 T_ref_frame;
+};
+
+struct Tracker::Impl {
+  Impl(const PinholeCamera& camera, const TrackerParams& params);
+  ~Impl();
+
+  // ---- tracker.cpp: the pipeline
+  TrackResult track(const RgbdInput& input);
+  TrackResult initialise(TrackedFrame* frame, const RgbdPyramid* pyramid);
+  TrackResult track_frame(TrackedFrame* frame, const RgbdPyramid* pyramid);
+  TrackResult track_lost(TrackedFrame* frame);
+  bool relocalise_frame(TrackedFrame* frame, SE3* T_wc, int* inliers);
+  std::optional<DensePrior> align_to_last(const RgbdPyramid* pyramid);
+  FeatureOutcome track_features(TrackedFrame* frame, const DensePrior* prior, const SE3& T_wc_mm);
+  bool track_motion_model(TrackedFrame* frame, const SE3& T_wc_mm, SE3* T_wc);
+  int match_last_frame(TrackedFrame* frame, const SE3& T_wc_guess, double radius,
+                       std::vector<PoseObservation>* temporary);
+  int match_with_pnp(TrackedFrame* frame, SE3* T_wc);
+  int search_local_map(TrackedFrame* frame, const SE3& T_wc);
+  void update_local_map(const TrackedFrame& frame);
+  Refinement refine(const TrackedFrame& frame, const SE3& T_wc_guess, const DensePrior* prior,
+                    const std::vector<PoseObservation>& extra) const;
+  void keep_inliers(TrackedFrame* frame, const Refinement& refinement) const;
+  std::vector<uint64_t> relocalisation_candidates();
+  void finish_frame(TrackedFrame* frame, const SE3& T_wc, bool update_velocity);
+  void accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
+              bool update_velocity, TrackResult* result);
+
+  // ---- tracker_map.cpp: the map
+  bool need_keyframe(const TrackedFrame& frame, int inliers, bool features_ok) const;
+  void create_keyframe(TrackedFrame* frame);
+  void create_points(uint64_t keyframe_id, TrackedFrame* frame);
+  void cull_recent_points();
+  void count_found(const TrackedFrame& frame);
+  LocalBaProblem local_ba_problem(uint64_t keyframe_id) const;
+  void run_local_ba(uint64_t keyframe_id);
+  void submit_local_ba();
+  void apply_ba_results();
+  void apply_ba_result(const LocalBaResult& result);
+  void follow_map(TrackedFrame* frame, const std::unordered_map<uint64_t, SE3>& moved,
+                  const SE3& correction);
+  void register_frame(uint64_t id);
+  std::vector<CorrectedPose> corrected_frames();
+  void reset();
+  void wait_for_mapping();
+
+  PinholeCamera camera_;
+  TrackerParams params_;
+  OrbExtractor extractor_;
+  MapStore map_;
+  std::unique_ptr<LocalBaWorker> ba_;
+  uint64_t generation_ = 1;  // bumped by reset(): results of an older map are dropped
+
+  std::atomic<TrackingState> state_{TrackingState::kNotInitialised};
+  int failures_ = 0;  // consecutive frames where neither features nor dense held
+  uint64_t frame_counter_ = 0;
+  std::optional<TrackedFrame> last_;
+  std::unique_ptr<RgbdPyramid> last_pyramid_;
+  SE3 velocity_;  // T_last_cur of the last tracked step
+  bool has_velocity_ = false;
+
+  uint64_t first_keyframe_ = kNoId;  // the world frame: fixed in every adjustment
+  uint64_t reference_keyframe_ = kNoId;
+  uint64_t last_keyframe_ = kNoId;
+  uint64_t last_keyframe_frame_ = 0;
+  uint64_t last_relocalised_frame_ = 0;
+  int last_inliers_ = 0;
+  std::vector<uint64_t> local_keyframes_;
+  std::vector<uint64_t> local_points_;
+  std::vector<uint64_t> recent_points_;  // created lately: culled unless re-found
+  size_t reloc_cursor_ = 0;
+  uint64_t ba_wanted_ = kNoId;  // keyframe whose adjustment waits for the worker
+
+  std::mutex registry_mutex_;  // guards the two below (corrected_frames() is thread-safe)
+  std::unordered_map<uint64_t, RegisteredFrame> registered_;
+  std::map<uint64_t, SE3> corrections_;  // frame ID -> corrected T_wc, the latest wins
+  std::atomic<uint64_t> ba_runs_{0};       // adjustments applied to the map
+};
+
+}  // namespace dqo::tracking

@@ -1,0 +1,144 @@
+// GaussianMap: attributes stored as given, object IDs preserved through add, prune (remove_if),
+// relabel and merge, the per-object index kept right after each.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <stdexcept>
+#include <vector>
+
+#include "dqo_map/gaussians/gaussian_map.h"
+
+namespace dqo::gs {
+namespace {
+
+GaussianInit with_id(uint32_t id, float x, GaussianType type = GaussianType::kOpaque) {
+  GaussianInit g;
+  g.position = Eigen::Vector3f(x, 2 * x, 3 * x);
+  g.object_id = id;
+  g.type = type;
+  g.birth_keyframe = static_cast<uint32_t>(x);
+  return g;
+}
+
+// Every Gaussian's ID agrees with the one its position was made with (x encodes the ID here), and
+// indices_of lists exactly the Gaussians of each ID in index order.
+void expect_consistent(const GaussianMap& map) {
+  const auto& ids = map.object_ids_per_gaussian();
+  for (uint32_t id : map.object_ids()) {
+    std::vector<uint32_t> expected;
+    for (size_t i = 0; i < map.size(); ++i)
+      if (ids[i] == id) expected.push_back(static_cast<uint32_t>(i));
+    EXPECT_EQ(map.indices_of(id), expected) << "object " << id;
+  }
+  size_t total = 0;
+  for (uint32_t id : map.object_ids()) total += map.indices_of(id).size();
+  EXPECT_EQ(total, map.size());
+}
+
+TEST(GaussianMap, AddStoresAttributesAndTypeOpacity) {
+  GaussianMap map;
+  GaussianInit g = with_id(4, 1.f);
+  g.rotation = Eigen::Vector4f(0.5f, 0.5f, -0.5f, 0.5f);
+  g.colour = Eigen::Vector3f(0.1f, 0.2f, 0.3f);
+  g.log_scale = Eigen::Vector3f(-3.f, -4.f, -5.f);
+  EXPECT_EQ(map.add(g), 0u);
+  EXPECT_EQ(map.add(with_id(4, 2.f, GaussianType::kTransparent)), 1u);
+  GaussianInit explicit_opacity = with_id(5, 3.f);
+  explicit_opacity.opacity = 0.42f;
+  EXPECT_EQ(map.add(explicit_opacity), 2u);
+  ASSERT_EQ(map.size(), 3u);
+  EXPECT_EQ(map.positions()[0], 1.f);
+  EXPECT_EQ(map.positions()[5], 6.f);
+  EXPECT_EQ(map.rotations()[2], -0.5f);
+  EXPECT_EQ(map.colours()[2], 0.3f);
+  EXPECT_EQ(map.log_scales()[1], -4.f);
+  EXPECT_EQ(map.opacities()[0], kOpaqueOpacity);
+  EXPECT_EQ(map.opacities()[1], kTransparentOpacity);
+  EXPECT_EQ(map.opacities()[2], 0.42f);
+  EXPECT_EQ(map.types()[1], static_cast<uint8_t>(GaussianType::kTransparent));
+  EXPECT_EQ(map.birth_keyframes()[2], 3u);
+  EXPECT_EQ(map.confidences()[0], 0.f);
+  EXPECT_EQ(map.stable()[0], 0);
+  EXPECT_EQ(map.object_ids(), (std::vector<uint32_t>{4, 5}));
+  EXPECT_EQ(map.indices_of(4), (std::vector<uint32_t>{0, 1}));
+  EXPECT_TRUE(map.indices_of(99).empty());
+}
+
+TEST(GaussianMap, IdsSurviveAddPruneRelabelAndMerge) {
+  GaussianMap map;
+  // x = 10 * id + k so that each Gaussian's ID can be checked from its position after any change.
+  const uint32_t ids[] = {0, 1, 2, 1, 3, 0, 2, 2, 1, 3, 3, 0};
+  for (size_t k = 0; k < std::size(ids); ++k) map.add(with_id(ids[k], 10.f * ids[k] + 0.01f * k));
+  auto check_ids_match_positions = [&](const std::vector<uint32_t>& relabelled_from,
+                                       uint32_t relabelled_to) {
+    for (size_t i = 0; i < map.size(); ++i) {
+      uint32_t original = static_cast<uint32_t>(map.positions()[3 * i] / 10.f);
+      if (std::find(relabelled_from.begin(), relabelled_from.end(), original) !=
+          relabelled_from.end())
+        original = relabelled_to;
+      EXPECT_EQ(map.object_ids_per_gaussian()[i], original) << "gaussian " << i;
+    }
+  };
+  expect_consistent(map);  // builds the index; the next add must keep it right
+  map.add(with_id(2, 20.5f));
+  expect_consistent(map);
+  EXPECT_EQ(map.indices_of(2).size(), 4u);
+
+  // Prune: every other Gaussian.
+  std::vector<uint8_t> remove(map.size(), 0);
+  for (size_t i = 0; i < remove.size(); i += 2) remove[i] = 1;
+  const size_t before = map.size();
+  EXPECT_EQ(map.remove_if(remove), (before + 1) / 2);
+  EXPECT_EQ(map.size(), before / 2);
+  check_ids_match_positions({}, 0);
+  expect_consistent(map);
+  // Attribute arrays stay aligned with each other.
+  for (size_t i = 0; i < map.size(); ++i) {
+    EXPECT_EQ(map.positions()[3 * i + 1], 2 * map.positions()[3 * i]);
+    EXPECT_EQ(map.birth_keyframes()[i], static_cast<uint32_t>(map.positions()[3 * i]));
+  }
+  EXPECT_THROW(map.remove_if(std::vector<uint8_t>(map.size() + 1, 0)), std::invalid_argument);
+
+  // Merge object 3 into object 1.
+  const size_t n1 = map.indices_of(1).size(), n3 = map.indices_of(3).size();
+  ASSERT_GT(n3, 0u);
+  EXPECT_EQ(map.relabel(3, 1), n3);
+  check_ids_match_positions({3}, 1);
+  expect_consistent(map);
+  EXPECT_EQ(map.indices_of(1).size(), n1 + n3);
+  EXPECT_TRUE(map.indices_of(3).empty());
+  const std::vector<uint32_t> present = map.object_ids();
+  EXPECT_EQ(std::count(present.begin(), present.end(), 3u), 0);
+
+  // Return object 2 to the background.
+  const size_t n0 = map.indices_of(0).size(), n2 = map.indices_of(2).size();
+  EXPECT_EQ(map.relabel(2, 0), n2);
+  expect_consistent(map);
+  EXPECT_EQ(map.indices_of(0).size(), n0 + n2);
+  EXPECT_EQ(map.relabel(42, 1), 0u);
+  EXPECT_EQ(map.relabel(1, 1), 0u);
+  EXPECT_EQ(map.object_ids(), (std::vector<uint32_t>{0, 1}));
+
+  // Add after relabel, then prune one object completely.
+  map.add(with_id(9, 90.f));
+  expect_consistent(map);
+  std::vector<uint8_t> drop(map.size(), 0);
+  for (uint32_t i : map.indices_of(1)) drop[i] = 1;
+  map.remove_if(drop);
+  expect_consistent(map);
+  EXPECT_TRUE(map.indices_of(1).empty());
+  EXPECT_EQ(map.indices_of(9).size(), 1u);
+}
+
+TEST(GaussianMap, BytesUsed) {
+  GaussianMap map;
+  EXPECT_EQ(map.bytes_used(), 0u);
+  map.reserve(1000);
+  for (int i = 0; i < 1000; ++i) map.add(with_id(1, float(i)));
+  // 3 + 3 + 4 + 3 + 1 + 1 floats, two uint32 and two bytes per Gaussian: 70 bytes.
+  EXPECT_EQ(map.bytes_used(), 1000u * 70u);
+}
+
+}  // namespace
+}  // namespace dqo::gs

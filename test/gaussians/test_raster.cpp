@@ -1,0 +1,410 @@
+// Properties of the CPU rasteriser's forward pass: one Gaussian's rendered mass against the
+// analytic integral, independence of insertion order, thread-count independence of the images, the
+// instance opacity `ins`, the dominant object ID, the depth of a flat wall.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+
+#include "dqo_map/gaussians/math/alpha.h"
+#include "dqo_map/gaussians/math/composite.h"
+#include "dqo_map/gaussians/math/project_gaussian.h"
+#include "raster_test_util.h"
+
+namespace dqo::gs {
+namespace {
+
+using testing::DoubleGaussians;
+using testing::Images;
+using testing::render;
+using testing::uniform;
+
+GaussianMap random_map(const PinholeCamera& cam, const SE3& T_cw, size_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  GaussianMap map;
+  for (size_t i = 0; i < n; ++i) {
+    GaussianInit g = testing::gaussian_at(cam, T_cw, uniform(rng, -10, cam.width + 10),
+                                          uniform(rng, -10, cam.height + 10), uniform(rng, 1, 5),
+                                          rng, std::log(0.01), std::log(0.08));
+    g.object_id = static_cast<uint32_t>(i % 4);
+    g.type = i % 7 == 0 ? GaussianType::kTransparent : GaussianType::kOpaque;
+    map.add(g);
+  }
+  return map;
+}
+
+// Σ_pixels α of one faint Gaussian = ∫ o exp(−½ dᵀ Σ⁻¹ d) over the ellipse where α ≥ 1/255, which
+// is 2π sqrt(det Σ_2D) (o − 1/255); Σ_2D computed here independently with Eigen (J R Σ Rᵀ Jᵀ +
+// 0.3).
+TEST(Rasteriser, RenderedMassMatchesTheIntegral) {
+  const PinholeCamera cam = testing::make_camera(160, 128, 170.0);
+  const SE3 T_cw = testing::test_pose();
+  std::mt19937_64 rng(3);
+  for (int trial = 0; trial < 3; ++trial) {
+    GaussianInit g =
+        testing::gaussian_at(cam, T_cw, uniform(rng, 60, 100), uniform(rng, 50, 80),
+                             uniform(rng, 1.5, 2.5), rng, std::log(0.03), std::log(0.08));
+    const double o = 0.2;  // no saturation, and the α = 1/255 ellipse lies inside the 3σ square
+    DoubleGaussians d;
+    d.add(g, o);
+    RenderSettings settings;
+    const Images<double> im = render(d.arrays(), cam, T_cw, settings, 2);
+    const double mass = std::accumulate(im.alpha.begin(), im.alpha.end(), 0.0);
+
+    const Eigen::Quaterniond q(d.rotation[0], d.rotation[1], d.rotation[2], d.rotation[3]);
+    const Eigen::Matrix3d R = q.normalized().toRotationMatrix();
+    const Eigen::Vector3d s(std::exp(d.log_scale[0]), std::exp(d.log_scale[1]),
+                            std::exp(d.log_scale[2]));
+    const Eigen::Matrix3d cov_w = R * s.cwiseAbs2().asDiagonal() * R.transpose();
+    const Eigen::Vector3d p_c = T_cw * Eigen::Vector3d(d.position[0], d.position[1], d.position[2]);
+    Eigen::Matrix<double, 2, 3> J;
+    J << cam.fx / p_c.z(), 0, -cam.fx * p_c.x() / (p_c.z() * p_c.z()), 0, cam.fy / p_c.z(),
+        -cam.fy * p_c.y() / (p_c.z() * p_c.z());
+    const Eigen::Matrix2d cov2d =
+        J * T_cw.rotation() * cov_w * T_cw.rotation().transpose() * J.transpose() +
+        0.3 * Eigen::Matrix2d::Identity();
+    const double expected = 2 * M_PI * std::sqrt(cov2d.determinant()) * (o - 1.0 / 255.0);
+    EXPECT_NEAR(mass, expected, 2e-3 * expected) << "trial " << trial;
+    EXPECT_GT(std::sqrt(cov2d.determinant()), 4.0);  // several pixels wide: the sum is an integral
+
+    // The float backend: same mass.
+    GaussianMap map;
+    g.opacity = static_cast<float>(o);
+    map.add(g);
+    RenderOutput out;
+    make_cpu_rasteriser(1)->forward(map, cam, T_cw, settings, &out, nullptr);
+    const double mass_f = std::accumulate(out.alpha.begin(), out.alpha.end(), 0.0);
+    EXPECT_NEAR(mass_f, expected, 2e-3 * expected);
+    // A single Gaussian: ins and alpha coincide when it is the requested object's OG.
+  }
+}
+
+// The plainest renderer the definition allows: every pixel walks all Gaussians in depth order,
+// takes those whose 3σ square's tiles hold it, with the shared maths (no bins, no masks, no row
+// spans, no loop swap). The rasteriser must agree with it exactly.
+Images<double> naive_render(const DoubleGaussians& d, const PinholeCamera& cam, const SE3& T_cw,
+                            const RenderSettings& settings) {
+  CameraView<double> view;
+  view.K = {cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height};
+  const Eigen::Matrix3d R = T_cw.rotation();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) view.R_cw.m[i][j] = R(i, j);
+  view.t_cw = {T_cw.translation().x(), T_cw.translation().y(), T_cw.translation().z()};
+  view.near = settings.near;
+  struct Entry {
+    size_t index;
+    ProjectedGaussian<double> p;
+    int tx0, ty0, tx1, ty1;
+  };
+  std::vector<Entry> entries;
+  for (size_t i = 0; i < d.size(); ++i) {
+    Entry e{i, {}, 0, 0, 0, 0};
+    if (!project_gaussian(&d.position[3 * i], &d.log_scale[3 * i], &d.rotation[4 * i], view, &e.p))
+      continue;
+    const double r = e.p.radius;
+    const double x0 = std::max(0.0, std::ceil(e.p.mean2d.x - r));
+    const double x1 = std::min(cam.width - 1.0, std::floor(e.p.mean2d.x + r));
+    const double y0 = std::max(0.0, std::ceil(e.p.mean2d.y - r));
+    const double y1 = std::min(cam.height - 1.0, std::floor(e.p.mean2d.y + r));
+    if (x0 > x1 || y0 > y1) continue;
+    e.tx0 = int(x0) / 16, e.tx1 = int(x1) / 16, e.ty0 = int(y0) / 16, e.ty1 = int(y1) / 16;
+    entries.push_back(e);
+  }
+  std::stable_sort(entries.begin(), entries.end(),
+                   [](const Entry& a, const Entry& b) { return a.p.depth < b.p.depth; });
+  Images<double> im;
+  const size_t n = static_cast<size_t>(cam.width) * cam.height;
+  im.rgb.resize(3 * n);
+  im.depth.resize(n);
+  im.alpha.resize(n);
+  im.ins.resize(n);
+  im.dominant_id.resize(n);
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      PixelAccum<double> acc = pixel_accum_start<double>();
+      double ins = 0, best = 0;
+      uint32_t best_id = 0;
+      for (const Entry& e : entries) {
+        if (x / 16 < e.tx0 || x / 16 > e.tx1 || y / 16 < e.ty0 || y / 16 > e.ty1) continue;
+        double alpha, vis;
+        if (!evaluate_alpha(e.p.conic, e.p.mean2d, d.opacity[e.index], double(x), double(y), &alpha,
+                            &vis))
+          continue;
+        const double w = acc.transmittance * alpha;
+        const Vec3<double> c = {d.colour[3 * e.index], d.colour[3 * e.index + 1],
+                                d.colour[3 * e.index + 2]};
+        if (!composite_step(alpha, c, e.p.depth, &acc)) break;
+        if (d.object_id[e.index] == settings.ins_object && settings.ins_object != 0 &&
+            d.type[e.index] == uint8_t(GaussianType::kOpaque))
+          ins += alpha;
+        if (w > best) best = w, best_id = d.object_id[e.index];
+      }
+      const size_t p = static_cast<size_t>(y) * cam.width + x;
+      const double t = acc.transmittance;
+      im.rgb[3 * p] = acc.rgb.x + t * settings.background[0];
+      im.rgb[3 * p + 1] = acc.rgb.y + t * settings.background[1];
+      im.rgb[3 * p + 2] = acc.rgb.z + t * settings.background[2];
+      im.depth[p] = acc.depth;
+      im.alpha[p] = 1 - t;
+      im.ins[p] = ins;
+      im.dominant_id[p] = best_id;
+    }
+  return im;
+}
+
+TEST(Rasteriser, MatchesANaiveRenderer) {
+  const PinholeCamera cam = testing::make_camera(90, 70, 70.0);
+  const SE3 T_cw = testing::test_pose();
+  std::mt19937_64 rng(12);
+  DoubleGaussians d;
+  for (int i = 0; i < 600; ++i) {
+    // Some off-screen, some near the camera, many overlapping (the early stop is reached).
+    GaussianInit g =
+        testing::gaussian_at(cam, T_cw, uniform(rng, -30, 120), uniform(rng, -30, 100),
+                             uniform(rng, 0.3, 4.0), rng, std::log(0.01), std::log(0.2));
+    g.object_id = static_cast<uint32_t>(i % 5);
+    g.type = i % 3 == 0 ? GaussianType::kTransparent : GaussianType::kOpaque;
+    d.add(g, i % 4 == 0 ? uniform(rng, 0.001, 0.05) : uniform(rng, 0.5, 1.0));
+  }
+  RenderSettings settings;
+  settings.ins_object = 2;
+  settings.background[0] = 0.4f;
+  const Images<double> ref = naive_render(d, cam, T_cw, settings);
+  const Images<double> im = render(d.arrays(), cam, T_cw, settings, 2);
+  int stopped = 0;
+  for (size_t p = 0; p < ref.alpha.size(); ++p) {
+    for (int c = 0; c < 3; ++c) ASSERT_NEAR(im.rgb[3 * p + c], ref.rgb[3 * p + c], 1e-12) << p;
+    ASSERT_NEAR(im.depth[p], ref.depth[p], 1e-12) << p;
+    ASSERT_NEAR(im.alpha[p], ref.alpha[p], 1e-12) << p;
+    ASSERT_NEAR(im.ins[p], ref.ins[p], 1e-12) << p;
+    ASSERT_EQ(im.dominant_id[p], ref.dominant_id[p]) << p;
+    stopped += ref.alpha[p] > 1 - 1e-3;  // T below 1e-4 / (1 − α) for α ≤ 0.9: stopped
+  }
+  EXPECT_GT(stopped, 100);  // the early stop was exercised
+}
+
+TEST(Rasteriser, EmptyMapRendersTheBackground) {
+  const PinholeCamera cam = testing::make_camera(40, 30, 40.0);
+  GaussianMap map;
+  RenderSettings settings;
+  settings.background[1] = 0.25f;
+  RenderOutput out;
+  std::unique_ptr<RenderState> state;
+  auto r = make_cpu_rasteriser(2);
+  r->forward(map, cam, SE3(), settings, &out, &state);
+  ASSERT_EQ(out.rgb.size(), 3u * 40 * 30);
+  for (size_t p = 0; p < out.alpha.size(); ++p) {
+    EXPECT_EQ(out.rgb[3 * p + 1], 0.25f);
+    EXPECT_EQ(out.alpha[p], 0.f);
+    EXPECT_EQ(out.dominant_id[p], 0u);
+  }
+  MapGradients g;
+  OutputGradients og;
+  og.rgb.assign(out.rgb.size(), 1.f);
+  r->backward(map, cam, SE3(), settings, *state, og, &g);
+  EXPECT_TRUE(g.position.empty());
+}
+
+// Shuffling the map permutes the gradients and changes nothing in the images, to the bit.
+TEST(Rasteriser, IndependentOfInsertionOrder) {
+  const PinholeCamera cam = testing::make_camera(96, 72, 80.0);
+  const SE3 T_cw = testing::test_pose();
+  const GaussianMap map = random_map(cam, T_cw, 3000, 5);
+  std::vector<size_t> perm(map.size());
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), std::mt19937_64(6));
+  GaussianMap shuffled;
+  for (size_t i : perm) {
+    GaussianInit g;
+    g.position = Eigen::Map<const Eigen::Vector3f>(map.positions().data() + 3 * i);
+    g.log_scale = Eigen::Map<const Eigen::Vector3f>(map.log_scales().data() + 3 * i);
+    g.rotation = Eigen::Map<const Eigen::Vector4f>(map.rotations().data() + 4 * i);
+    g.colour = Eigen::Map<const Eigen::Vector3f>(map.colours().data() + 3 * i);
+    g.opacity = map.opacities()[i];
+    g.object_id = map.object_ids_per_gaussian()[i];
+    g.type = static_cast<GaussianType>(map.types()[i]);
+    shuffled.add(g);
+  }
+  RenderSettings settings;
+  settings.ins_object = 2;
+  settings.background[2] = 1.f;
+  auto r = make_cpu_rasteriser(2);
+  RenderOutput a, b;
+  std::unique_ptr<RenderState> sa, sb;
+  r->forward(map, cam, T_cw, settings, &a, &sa);
+  r->forward(shuffled, cam, T_cw, settings, &b, &sb);
+  EXPECT_EQ(a.rgb, b.rgb);
+  EXPECT_EQ(a.depth, b.depth);
+  EXPECT_EQ(a.alpha, b.alpha);
+  EXPECT_EQ(a.ins, b.ins);
+  EXPECT_EQ(a.dominant_id, b.dominant_id);
+  EXPECT_GT(*std::max_element(a.alpha.begin(), a.alpha.end()), 0.9f);
+
+  std::mt19937_64 rng(7);
+  OutputGradients og;
+  og.rgb.resize(a.rgb.size());
+  og.depth.resize(a.depth.size());
+  og.ins.resize(a.ins.size());
+  for (float& v : og.rgb) v = static_cast<float>(uniform(rng, -1, 1));
+  for (float& v : og.depth) v = static_cast<float>(uniform(rng, -1, 1));
+  for (float& v : og.ins) v = static_cast<float>(uniform(rng, -1, 1));
+  MapGradients ga, gb;
+  r->backward(map, cam, T_cw, settings, *sa, og, &ga);
+  r->backward(shuffled, cam, T_cw, settings, *sb, og, &gb);
+  for (size_t k = 0; k < perm.size(); ++k) {
+    const size_t i = perm[k];
+    for (int c = 0; c < 3; ++c) {
+      ASSERT_EQ(ga.position[3 * i + c], gb.position[3 * k + c]);
+      ASSERT_EQ(ga.log_scale[3 * i + c], gb.log_scale[3 * k + c]);
+      ASSERT_EQ(ga.colour[3 * i + c], gb.colour[3 * k + c]);
+    }
+    for (int c = 0; c < 4; ++c) ASSERT_EQ(ga.rotation[4 * i + c], gb.rotation[4 * k + c]);
+    ASSERT_EQ(ga.opacity[i], gb.opacity[k]);
+  }
+}
+
+// Images do not depend on the thread count (tiles are independent); gradients only through the
+// rounding of their per-thread sums.
+TEST(Rasteriser, ThreadCountChangesNoImage) {
+  const PinholeCamera cam = testing::make_camera(100, 70, 90.0);
+  const SE3 T_cw = testing::test_pose();
+  const GaussianMap map = random_map(cam, T_cw, 2000, 8);
+  RenderSettings settings;
+  settings.normalise_depth = true;
+  RenderOutput a, b;
+  std::unique_ptr<RenderState> sa, sb;
+  auto r1 = make_cpu_rasteriser(1), r3 = make_cpu_rasteriser(3);
+  r1->forward(map, cam, T_cw, settings, &a, &sa);
+  r3->forward(map, cam, T_cw, settings, &b, &sb);
+  EXPECT_EQ(a.rgb, b.rgb);
+  EXPECT_EQ(a.depth, b.depth);
+  OutputGradients og;
+  og.rgb.assign(a.rgb.size(), 0.5f);
+  og.depth.assign(a.depth.size(), -0.25f);
+  MapGradients ga, gb, gc;
+  r1->backward(map, cam, T_cw, settings, *sa, og, &ga);
+  r3->backward(map, cam, T_cw, settings, *sb, og, &gb);
+  r3->backward(map, cam, T_cw, settings, *sb, og, &gc);
+  EXPECT_EQ(gb.position, gc.position);  // deterministic for a given thread count
+  float scale = 0.f;
+  for (float v : ga.position) scale = std::max(scale, std::abs(v));
+  ASSERT_GT(scale, 0.f);
+  for (size_t i = 0; i < ga.position.size(); ++i)
+    ASSERT_NEAR(ga.position[i], gb.position[i], 1e-5f * scale);
+}
+
+// ins = Σ α over the OG Gaussians of the requested object only: the same with or without the other
+// Gaussians (none of them occludes it away: no early stop here), and zero where only others are.
+TEST(Rasteriser, InsCountsOnlyTheObjectsOpaqueGaussians) {
+  const PinholeCamera cam = testing::make_camera(64, 48, 60.0);
+  const SE3 T_cw = testing::test_pose();
+  std::mt19937_64 rng(9);
+  DoubleGaussians all, own, others;
+  for (int i = 0; i < 12; ++i) {
+    GaussianInit g = testing::gaussian_at(cam, T_cw, uniform(rng, 10, 54), uniform(rng, 8, 40),
+                                          uniform(rng, 2, 3), rng, std::log(0.05), std::log(0.12));
+    g.object_id = i % 3 == 0 ? 0u : (i % 3 == 1 ? 7u : 8u);
+    g.type = i % 4 == 3 ? GaussianType::kTransparent : GaussianType::kOpaque;
+    const double o = uniform(rng, 0.2, 0.5);
+    all.add(g, o);
+    (g.object_id == 7 && g.type == GaussianType::kOpaque ? own : others).add(g, o);
+  }
+  ASSERT_GT(own.size(), 1u);
+  RenderSettings settings;
+  settings.ins_object = 7;
+  const Images<double> a = render(all.arrays(), cam, T_cw, settings, 2);
+  const Images<double> b = render(own.arrays(), cam, T_cw, settings, 2);
+  const Images<double> c = render(others.arrays(), cam, T_cw, settings, 2);
+  double total = 0.0;
+  for (size_t p = 0; p < a.ins.size(); ++p) {
+    EXPECT_NEAR(a.ins[p], b.ins[p], 1e-12);
+    EXPECT_EQ(c.ins[p], 0.0);
+    total += a.ins[p];
+  }
+  EXPECT_GT(total, 1.0);
+  // ins_object = 0 renders no instance opacity.
+  settings.ins_object = 0;
+  const Images<double> z = render(all.arrays(), cam, T_cw, settings, 2);
+  for (double v : z.ins) EXPECT_EQ(v, 0.0);
+}
+
+// Object 1, a dense patch in front, hides object 2, a larger patch behind; object 2 shows around.
+TEST(Rasteriser, DominantIdIsTheFrontObject) {
+  const PinholeCamera cam = testing::make_camera(80, 60, 80.0);
+  const SE3 T_cw;  // identity: the patches are laid out in camera coordinates
+  GaussianMap map;
+  auto patch = [&](uint32_t id, double z, double half, double spacing) {
+    for (double y = -half; y <= half + 1e-9; y += spacing)
+      for (double x = -half; x <= half + 1e-9; x += spacing) {
+        GaussianInit g;
+        g.position = Eigen::Vector3f(x, y, z);
+        g.log_scale = Eigen::Vector3f(std::log(spacing), std::log(spacing), std::log(0.002));
+        g.object_id = id;
+        map.add(g);
+      }
+  };
+  patch(2, 4.0, 2.0, 0.1);   // behind, inserted first
+  patch(1, 2.0, 0.2, 0.05);  // in front
+  RenderOutput out;
+  make_cpu_rasteriser(2)->forward(map, cam, T_cw, RenderSettings(), &out, nullptr);
+  const int cx = 40, cy = 30;
+  EXPECT_EQ(out.dominant_id[cy * 80 + cx], 1u);
+  EXPECT_EQ(out.dominant_id[cy * 80 + cx + 3], 1u);
+  EXPECT_EQ(out.dominant_id[cy * 80 + 5], 2u);  // beside the front patch
+  EXPECT_EQ(out.dominant_id[5 * 80 + cx], 2u);
+  // Pixels whose centre sees only the front patch: all of them 1.
+  for (int v = cy - 4; v <= cy + 4; ++v)
+    for (int u = cx - 4; u <= cx + 4; ++u) EXPECT_EQ(out.dominant_id[v * 80 + u], 1u);
+}
+
+// A flat wall of Gaussians at z = 2.5: normalised depth is 2.5 wherever anything is rendered and
+// the raw depth is 2.5 × the accumulated alpha.
+TEST(Rasteriser, DepthOfAFlatWall) {
+  const PinholeCamera cam = testing::make_camera(64, 48, 50.0);
+  const double z = 2.5;
+  GaussianMap map;
+  for (double y = -1.5; y <= 1.5; y += 0.04)
+    for (double x = -2.0; x <= 2.0; x += 0.04) {
+      GaussianInit g;
+      g.position = Eigen::Vector3f(x, y, z);
+      g.log_scale = Eigen::Vector3f(std::log(0.03), std::log(0.03), std::log(0.001));
+      map.add(g);
+    }
+  RenderSettings settings;
+  auto r = make_cpu_rasteriser(2);
+  RenderOutput raw, normalised;
+  r->forward(map, cam, SE3(), settings, &raw, nullptr);
+  settings.normalise_depth = true;
+  r->forward(map, cam, SE3(), settings, &normalised, nullptr);
+  for (size_t p = 0; p < raw.depth.size(); ++p) {
+    EXPECT_GT(raw.alpha[p], 0.99f);  // the wall fills the view, opaque
+    EXPECT_NEAR(normalised.depth[p], z, 1e-5);
+    EXPECT_NEAR(raw.depth[p], z * raw.alpha[p], 1e-5);
+  }
+}
+
+TEST(Rasteriser, BackwardRefusesAStateOfAnotherMap) {
+  const PinholeCamera cam = testing::make_camera(32, 32, 30.0);
+  const GaussianMap map = random_map(cam, SE3(), 50, 10);
+  const GaussianMap other = random_map(cam, SE3(), 49, 10);
+  auto r = make_cpu_rasteriser(1);
+  RenderOutput out;
+  std::unique_ptr<RenderState> state;
+  r->forward(map, cam, SE3(), RenderSettings(), &out, &state);
+  MapGradients g;
+  OutputGradients og;
+  og.rgb.assign(out.rgb.size(), 1.f);
+  EXPECT_THROW(r->backward(other, cam, SE3(), RenderSettings(), *state, og, &g),
+               std::invalid_argument);
+  og.depth.assign(3, 1.f);  // wrong size
+  MapGradients g2;
+  EXPECT_THROW(r->backward(map, cam, SE3(), RenderSettings(), *state, og, &g2),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace dqo::gs

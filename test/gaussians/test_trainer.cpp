@@ -1,0 +1,202 @@
+// The incremental trainer on the `tiny` scene (160x120, no noise) with ground-truth poses and
+// instance labels: image quality and object IDs after a few keyframes; stabilisation, pruning
+// (stale, oversized, invisible) and state kept in step through relabel and removal.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "dqo_map/gaussians/render_metrics.h"
+#include "dqo_map/gaussians/trainer.h"
+#include "dqo_map/sim/renderer.h"
+#include "dqo_map/sim/scene_loader.h"
+
+namespace dqo::gs {
+namespace {
+
+const sim::Scene& tiny() {
+  static const sim::Scene scene = [] {
+    std::string error;
+    auto s = sim::load_scene(std::string(DQO_SOURCE_DIR) + "/config/scenes/tiny.yaml", {}, &error);
+    EXPECT_TRUE(s.has_value()) << error;
+    return s ? *s : sim::Scene();
+  }();
+  return scene;
+}
+
+const Frame& tiny_frame(int index) {
+  static const sim::Renderer renderer(tiny(), 2);
+  static std::vector<Frame> frames(tiny().num_frames());
+  static std::vector<bool> done(tiny().num_frames(), false);
+  if (!done[index]) {
+    frames[index] = renderer.render(index, false);
+    done[index] = true;
+  }
+  return frames[index];
+}
+
+TrainingKeyframe keyframe_of(int index) {
+  const Frame& f = tiny_frame(index);
+  TrainingKeyframe kf;
+  kf.id = static_cast<uint32_t>(100 + index);
+  kf.camera = tiny().camera;
+  kf.T_wc = f.T_wc;
+  kf.rgb = f.rgb;
+  kf.depth = f.depth;
+  kf.labels = labels_from_instance(f.instance);
+  return kf;
+}
+
+TEST(Trainer, TinyKeyframesReachQualityAndIds) {
+  GaussianTrainer::Params params;
+  params.iterations = 60;
+  GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+  const std::vector<int> frames = {0, 1, 2, 3};
+  for (const int f : frames) {
+    const KeyframeReport r = trainer.add_keyframe(keyframe_of(f));
+    EXPECT_LT(r.loss_last, r.loss_first) << "keyframe " << f;
+    EXPECT_EQ(r.num_gaussians, trainer.map().size());
+  }
+  EXPECT_EQ(trainer.keyframes_seen(), frames.size());
+  EXPECT_EQ(trainer.keyframes_stored(), static_cast<size_t>(params.window));
+  for (const int f : frames) {
+    RenderOutput out;
+    trainer.render(tiny().camera, tiny_frame(f).T_wc, &out);
+    const double p = psnr(out, tiny_frame(f).rgb);
+    const double ids = id_agreement(out, tiny_frame(f).instance);
+    const double dl1 = depth_l1(out, tiny_frame(f).depth);
+    EXPECT_GT(p, 26.0) << "frame " << f;
+    EXPECT_GE(ids, 0.9) << "frame " << f;
+    EXPECT_LT(dl1, 0.03) << "frame " << f;
+  }
+  // Every object of the scene has Gaussians, with its ID.
+  for (uint32_t id = 1; id <= 5; ++id) EXPECT_GT(trainer.map().indices_of(id).size(), 20u) << id;
+}
+
+TEST(Trainer, FirstKeyframeCoversTheView) {
+  GaussianTrainer::Params params;
+  params.iterations = 0;
+  GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+  const KeyframeReport r = trainer.add_keyframe(keyframe_of(0));
+  const int w = tiny().camera.width, h = tiny().camera.height;
+  EXPECT_EQ(r.missing_pixels, static_cast<size_t>(w * h));
+  EXPECT_EQ(r.added_error, 0u);
+  // One Gaussian per stride² pixels with depth in range.
+  EXPECT_NEAR(static_cast<double>(r.added_missing), w * h / 4.0, w * h * 0.02);
+  RenderOutput out;
+  trainer.render(tiny().camera, tiny_frame(0).T_wc, &out);
+  size_t covered = 0;
+  for (const float a : out.alpha) covered += a > 0.5f ? 1 : 0;
+  EXPECT_GT(covered, 0.97 * w * h);
+  // Object IDs come from the labels, and a second look at the same view adds (almost) nothing.
+  EXPECT_GT(id_agreement(out, tiny_frame(0).instance), 0.9);
+  const KeyframeReport again = trainer.add_keyframe(keyframe_of(0));
+  EXPECT_LT(again.added_missing + again.added_error, r.added_missing / 50);
+}
+
+TEST(Trainer, StabilisesAndFreezes) {
+  GaussianTrainer::Params params;
+  params.iterations = 40;
+  params.window = 1;
+  params.stable_confidence = 30.f;  // reached within one keyframe by every Gaussian in view
+  GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+  const KeyframeReport r = trainer.add_keyframe(keyframe_of(0));
+  EXPECT_GT(r.became_stable, r.added_missing * 9 / 10);
+  EXPECT_EQ(r.num_unstable, r.num_gaussians - r.became_stable);
+
+  // Stable Gaussians do not move when the next keyframe is trained.
+  const GaussianMap before = trainer.map();
+  const KeyframeReport r2 = trainer.add_keyframe(keyframe_of(1));
+  const size_t pruned = r2.pruned_stale + r2.pruned_oversized + r2.pruned_invisible;
+  ASSERT_EQ(pruned, 0u);
+  size_t checked = 0;
+  for (size_t i = 0; i < before.size(); ++i) {
+    if (!before.stable()[i]) continue;
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_EQ(trainer.map().positions()[3 * i + k], before.positions()[3 * i + k]);
+      ASSERT_EQ(trainer.map().colours()[3 * i + k], before.colours()[3 * i + k]);
+    }
+    ++checked;
+  }
+  EXPECT_GT(checked, 1000u);
+}
+
+TEST(Trainer, PrunesStaleUnstableGaussians) {
+  GaussianTrainer::Params params;
+  params.iterations = 5;
+  params.stable_confidence = 1e9f;  // nothing becomes stable
+  params.max_unstable_age = 1;      // gone two keyframes after birth
+  GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+  const size_t born0 = trainer.add_keyframe(keyframe_of(0)).num_gaussians;
+  trainer.add_keyframe(keyframe_of(1));
+  const KeyframeReport r = trainer.add_keyframe(keyframe_of(2));
+  EXPECT_EQ(r.pruned_stale, born0);
+  for (const uint32_t b : trainer.map().birth_keyframes()) EXPECT_GE(b, 1u);
+}
+
+TEST(Trainer, PrunesOversizedAndInvisibleGaussians) {
+  GaussianTrainer::Params params;
+  params.iterations = 20;
+  params.max_invisible_keyframes = 2;
+  // Behind the surface a pixel keeps a few per cent transmittance: the hidden Gaussian below
+  // contributes ~0.06, visible ones > 0.3 (1 % quantile).
+  params.min_contribution = 0.2f;
+  GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+  trainer.add_keyframe(keyframe_of(0));
+
+  // One Gaussian far too large, one hidden 5 cm behind the surface seen at the image centre.
+  GaussianMap map = trainer.map();
+  const Frame& f = tiny_frame(0);
+  const PinholeCamera& cam = tiny().camera;
+  const int u = cam.width / 2, v = cam.height / 2;
+  const double d = f.depth.at(u, v);
+  ASSERT_GT(d, 0.3);
+  GaussianInit big;
+  big.position = (f.T_wc * cam.back_project(u, v, 0.8 * d)).cast<float>();
+  big.log_scale = Eigen::Vector3f::Constant(std::log(2.0f));
+  big.object_id = 98;
+  map.add(big);
+  GaussianInit hidden;
+  hidden.position = (f.T_wc * cam.back_project(u, v, d + 0.05)).cast<float>();
+  hidden.log_scale = Eigen::Vector3f::Constant(std::log(0.002f));
+  hidden.object_id = 99;
+  for (auto& s : map.stable()) s = 1;  // freeze the rest, so that the view stays as it is
+  map.add(hidden);
+  trainer.set_map(map);
+
+  const KeyframeReport r1 = trainer.add_keyframe(keyframe_of(0));
+  EXPECT_GE(r1.pruned_oversized, 1u);
+  EXPECT_TRUE(trainer.map().indices_of(98).empty());
+  EXPECT_FALSE(trainer.map().indices_of(99).empty());  // invisible once: not yet
+  const KeyframeReport r2 = trainer.add_keyframe(keyframe_of(0));
+  EXPECT_TRUE(trainer.map().indices_of(99).empty());
+  EXPECT_GE(r2.pruned_invisible, 1u);
+  EXPECT_LT(r1.pruned_invisible + r2.pruned_invisible, map.size() / 20);
+}
+
+TEST(Trainer, RelabelRemovalAndPoses) {
+  GaussianTrainer::Params params;
+  params.iterations = 10;
+  GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+  trainer.add_keyframe(keyframe_of(0));
+  const size_t of1 = trainer.map().indices_of(1).size(), of2 = trainer.map().indices_of(2).size();
+  ASSERT_GT(of1, 0u);
+  EXPECT_EQ(trainer.relabel(1, 2), of1);
+  EXPECT_TRUE(trainer.map().indices_of(1).empty());
+  EXPECT_EQ(trainer.map().indices_of(2).size(), of1 + of2);
+
+  std::vector<uint8_t> remove(trainer.map().size(), 0);
+  for (size_t i = 0; i < remove.size(); i += 2) remove[i] = 1;
+  const size_t n = trainer.map().size();
+  EXPECT_EQ(trainer.remove_if(remove), (n + 1) / 2);
+  EXPECT_TRUE(trainer.set_keyframe_pose(100, tiny_frame(0).T_wc));
+  EXPECT_FALSE(trainer.set_keyframe_pose(7, tiny_frame(0).T_wc));
+  // The next keyframe trains on the thinned map and refills it.
+  const KeyframeReport r = trainer.add_keyframe(keyframe_of(1));
+  EXPECT_GT(r.added_missing + r.added_error, 0u);
+  EXPECT_EQ(r.num_gaussians, trainer.map().size());
+}
+
+}  // namespace
+}  // namespace dqo::gs

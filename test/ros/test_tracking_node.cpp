@@ -1,0 +1,353 @@
+// rostest of tracking_node (test/ros/tracking.test): renders a synthetic bag with dqo_make_scene
+// (tabletop, 40 frames, every 3rd: sensor noise on, 3.6 degrees between frames), plays it into the
+// node frame by frame (each frame waits for the node's tf of that stamp, so nothing is dropped on a
+// slow machine), and checks:
+//   - keyframes arrive, stamped with their images' stamps, with rectified pinhole images and poses
+//     within 2 cm of the ground truth (after aligning the first keyframe);
+//   - tf: every frame has a single parent, the node attached map to the root of the camera's tree
+//     (camera_base), and map -> rgb_camera_link through tf equals the keyframe poses;
+//   - bad input leaves the node running: an unknown encoding and a depth image of NaNs are skipped
+//     with a log line each; time going backwards (the bag looping) resets it, and keyframes keep
+//     coming with IDs that are never reused.
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <set>
+
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <rosgraph_msgs/Clock.h>
+#include <rosgraph_msgs/Log.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <std_msgs/String.h>
+#include <tf2/buffer_core.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <dqo_map/KeyFrame.h>
+
+#include "dqo_map/common/tum_trajectory.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Capture {
+  ros::Time stamp;
+  sensor_msgs::Image rgb, depth;
+  sensor_msgs::CameraInfo info;
+};
+
+dqo::SE3 to_se3(const geometry_msgs::Pose& p) {
+  return dqo::SE3(Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z),
+                  Eigen::Vector3d(p.position.x, p.position.y, p.position.z));
+}
+dqo::SE3 to_se3(const geometry_msgs::Transform& t) {
+  return dqo::SE3(Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z),
+                  Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z));
+}
+double angle_deg(const dqo::SE3& T) {
+  return 2.0 * std::acos(std::min(1.0, std::abs(T.quaternion().w()))) * 180.0 / M_PI;
+}
+
+// What the test hears from the node (callbacks run on an AsyncSpinner's thread).
+struct Recorder {
+  std::mutex mutex;
+  std::vector<dqo_map::KeyFrame> keyframes;
+  std::vector<geometry_msgs::TransformStamped> transforms;  // /tf and /tf_static, in order
+  std::map<std::string, std::set<std::string>> parents;     // child -> every parent seen
+  std::set<double> tf_stamps;                               // stamps of map -> * edges
+  std::vector<std::string> node_logs;
+  std::string state;
+
+  void on_keyframe(const dqo_map::KeyFrame::ConstPtr& kf) {
+    std::lock_guard<std::mutex> lock(mutex);
+    keyframes.push_back(*kf);
+  }
+  void on_tf(const tf2_msgs::TFMessage::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& t : msg->transforms) {
+      transforms.push_back(t);
+      parents[t.child_frame_id].insert(t.header.frame_id);
+      if (t.header.frame_id == "map") tf_stamps.insert(t.header.stamp.toSec());
+    }
+  }
+  void on_log(const rosgraph_msgs::Log::ConstPtr& log) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (log->name.find("tracking") != std::string::npos) node_logs.push_back(log->msg);
+  }
+  void on_state(const std_msgs::String::ConstPtr& s) {
+    std::lock_guard<std::mutex> lock(mutex);
+    state = s->data;
+  }
+  bool saw_tf_at(const ros::Time& t) {
+    std::lock_guard<std::mutex> lock(mutex);
+    return tf_stamps.count(t.toSec()) > 0;
+  }
+  size_t num_keyframes() {
+    std::lock_guard<std::mutex> lock(mutex);
+    return keyframes.size();
+  }
+  bool logged(const std::string& needle) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& m : node_logs) {
+      if (m.find(needle) != std::string::npos) return true;
+    }
+    return false;
+  }
+};
+
+template <typename Pred>
+bool wait_for(Pred pred, double seconds) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+  while (ros::ok() && ros::WallTime::now() < end) {
+    if (pred()) return true;
+    ros::WallDuration(0.005).sleep();
+  }
+  return pred();
+}
+
+class TrackingNodeTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    // One bag for all tests: rendered once.
+    dir_ = fs::temp_directory_path() / ("dqo_tracking_test_" + std::to_string(getpid()));
+    fs::create_directories(dir_);
+    const std::string cmd = std::string(DQO_MAKE_SCENE) + " " + DQO_SOURCE_DIR +
+                            "/config/scenes/tabletop.yaml " + (dir_ / "data").string() + " --bag " +
+                            (dir_ / "tabletop.bag").string() + " --frames 40 --every 3 --overwrite > " +
+                            (dir_ / "make_scene.log").string() + " 2>&1";
+    make_scene_rc_ = std::system(cmd.c_str());
+  }
+  static void TearDownTestSuite() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+
+  void SetUp() override {
+    ASSERT_EQ(make_scene_rc_, 0) << "dqo_make_scene failed; see " << (dir_ / "make_scene.log");
+    rosbag::Bag bag((dir_ / "tabletop.bag").string(), rosbag::bagmode::Read);
+    std::map<ros::Time, Capture> by_stamp;
+    for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
+      if (m.getTopic() == "/tf_static") {
+        tf_static_ = *m.instantiate<tf2_msgs::TFMessage>();
+      } else if (m.getTopic() == "/rgb/image_raw") {
+        auto img = m.instantiate<sensor_msgs::Image>();
+        by_stamp[img->header.stamp].rgb = *img;
+        by_stamp[img->header.stamp].stamp = img->header.stamp;
+      } else if (m.getTopic() == "/depth_to_rgb/image_raw") {
+        auto img = m.instantiate<sensor_msgs::Image>();
+        by_stamp[img->header.stamp].depth = *img;
+      } else if (m.getTopic() == "/rgb/camera_info") {
+        auto info = m.instantiate<sensor_msgs::CameraInfo>();
+        by_stamp[info->header.stamp].info = *info;
+      }
+    }
+    for (auto& [stamp, c] : by_stamp) captures_.push_back(c);
+    ASSERT_EQ(captures_.size(), 40u);
+    ASSERT_FALSE(tf_static_.transforms.empty());
+    std::string error;
+    const auto gt = dqo::read_tum_trajectory((dir_ / "data" / "groundtruth.txt").string(), &error);
+    ASSERT_TRUE(gt) << error;
+    ASSERT_EQ(gt->size(), captures_.size());
+    // The bag's stamps are the dataset's timestamps plus a start offset.
+    const double offset = captures_.front().stamp.toSec() - gt->front().first;
+    for (const auto& [t, T] : *gt) gt_[std::lround((t + offset) * 1e6)] = T;
+
+    ros::NodeHandle nh;
+    keyframe_sub_ = nh.subscribe("/dqo_map/keyframes", 100, &Recorder::on_keyframe, &rec_);
+    tf_sub_ = nh.subscribe("/tf", 1000, &Recorder::on_tf, &rec_);
+    tf_static_sub_ = nh.subscribe("/tf_static", 100, &Recorder::on_tf, &rec_);
+    log_sub_ = nh.subscribe("/rosout", 1000, &Recorder::on_log, &rec_);
+    state_sub_ = nh.subscribe("/dqo_map/tracking_state", 10, &Recorder::on_state, &rec_);
+    clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10, true);
+    tf_static_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf_static", 10, true);
+    rgb_pub_ = nh.advertise<sensor_msgs::Image>("/rgb/image_raw", 10);
+    depth_pub_ = nh.advertise<sensor_msgs::Image>("/depth_to_rgb/image_raw", 10);
+    info_pub_ = nh.advertise<sensor_msgs::CameraInfo>("/rgb/camera_info", 10);
+    spinner_ = std::make_unique<ros::AsyncSpinner>(2);
+    spinner_->start();
+    ASSERT_TRUE(wait_for(
+        [&] {
+          return rgb_pub_.getNumSubscribers() > 0 && depth_pub_.getNumSubscribers() > 0 &&
+                 info_pub_.getNumSubscribers() > 0 && keyframe_sub_.getNumPublishers() > 0 &&
+                 tf_sub_.getNumPublishers() > 0 && log_sub_.getNumPublishers() > 0;
+        },
+        30.0))
+        << "tracking_node did not connect";
+  }
+
+  void TearDown() override {
+    if (spinner_) spinner_->stop();
+  }
+
+  void set_clock(const ros::Time& t) {
+    rosgraph_msgs::Clock c;
+    c.clock = t;
+    clock_pub_.publish(c);
+  }
+
+  // Publishes one capture as the bag holds it (the static tf first, as `rosbag play` does at the
+  // bag's start) and waits for the node's map edge of that stamp.
+  bool play(const Capture& c, bool with_static, double wait_s = 5.0) {
+    set_clock(c.stamp);
+    if (with_static) {
+      tf2_msgs::TFMessage s = tf_static_;
+      for (auto& t : s.transforms) t.header.stamp = c.stamp;
+      tf_static_pub_.publish(s);
+      ros::WallDuration(0.2).sleep();  // rosbag play, too, sends it ahead of the images
+    }
+    info_pub_.publish(c.info);
+    depth_pub_.publish(c.depth);
+    rgb_pub_.publish(c.rgb);
+    return wait_for([&] { return rec_.saw_tf_at(c.stamp); }, wait_s);
+  }
+
+  // Sends the remaining frames so the synchroniser releases the last one, then lets BA settle.
+  void drain(const ros::Time& after) {
+    set_clock(after + ros::Duration(1.0));
+    ros::WallDuration(0.5).sleep();
+  }
+
+  const dqo::SE3* gt_at(const ros::Time& t) const {
+    auto it = gt_.find(std::lround(t.toSec() * 1e6));
+    return it == gt_.end() ? nullptr : &it->second;
+  }
+
+  static fs::path dir_;
+  static int make_scene_rc_;
+  std::vector<Capture> captures_;
+  tf2_msgs::TFMessage tf_static_;
+  std::map<long, dqo::SE3> gt_;  // ground truth by bag stamp in microseconds
+  Recorder rec_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
+  ros::Subscriber keyframe_sub_, tf_sub_, tf_static_sub_, log_sub_, state_sub_;
+  ros::Publisher clock_pub_, tf_static_pub_, rgb_pub_, depth_pub_, info_pub_;
+};
+
+fs::path TrackingNodeTest::dir_;
+int TrackingNodeTest::make_scene_rc_ = -1;
+
+TEST_F(TrackingNodeTest, KeyframesTfAndBadInput) {
+  // ---- the bag, in order
+  int tracked = 0;
+  for (size_t i = 0; i < captures_.size(); ++i) tracked += play(captures_[i], i == 0) ? 1 : 0;
+  drain(captures_.back().stamp);
+  EXPECT_GE(tracked, 38) << "frames the node published tf for";
+
+  std::vector<dqo_map::KeyFrame> keyframes;
+  {
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    keyframes = rec_.keyframes;
+    EXPECT_EQ(rec_.state, "ok");  // tracking::to_string(TrackingState::kOk)
+  }
+  ASSERT_GE(keyframes.size(), 5u);
+
+  std::set<double> image_stamps;
+  for (const auto& c : captures_) image_stamps.insert(c.stamp.toSec());
+  const dqo::SE3* gt0 = gt_at(keyframes.front().header.stamp);
+  ASSERT_TRUE(gt0);
+  const dqo::SE3 T_gt_map = *gt0 * to_se3(keyframes.front().pose).inverse();
+  uint64_t last_id = 0;
+  double worst_m = 0.0, worst_deg = 0.0;
+  for (const auto& kf : keyframes) {
+    EXPECT_EQ(kf.header.frame_id, "map");
+    EXPECT_TRUE(image_stamps.count(kf.header.stamp.toSec())) << "keyframe stamp " << kf.header.stamp;
+    EXPECT_EQ(kf.rgb.header.stamp, kf.header.stamp);
+    EXPECT_EQ(kf.depth.header.stamp, kf.header.stamp);
+    EXPECT_GT(kf.id, last_id);
+    last_id = kf.id;
+    EXPECT_EQ(kf.rgb.encoding, "rgb8");
+    EXPECT_EQ(kf.depth.encoding, "32FC1");
+    EXPECT_EQ(kf.rgb.width, 640u);
+    EXPECT_EQ(kf.depth.height, 480u);
+    EXPECT_EQ(kf.camera_info.width, 640u);
+    for (double d : kf.camera_info.D) EXPECT_EQ(d, 0.0);
+    EXPECT_EQ(kf.camera_info.K[0], captures_.front().info.K[0]);
+    const dqo::SE3* gt = gt_at(kf.header.stamp);
+    ASSERT_TRUE(gt);
+    const dqo::SE3 delta = gt->inverse() * (T_gt_map * to_se3(kf.pose));
+    worst_m = std::max(worst_m, delta.translation().norm());
+    worst_deg = std::max(worst_deg, angle_deg(delta));
+    EXPECT_LT(delta.translation().norm(), 0.02) << "keyframe " << kf.id << " at " << kf.header.stamp;
+  }
+  EXPECT_LT(worst_deg, 2.0);
+  std::printf("[ INFO     ] %zu keyframes; worst position error %.4f m, rotation %.3f deg\n", keyframes.size(),
+              worst_m, worst_deg);
+
+  // ---- tf: one parent per frame, map above the driver's root, and map -> camera = keyframe pose
+  {
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    for (const auto& [child, parents] : rec_.parents) {
+      EXPECT_EQ(parents.size(), 1u) << child << " has " << parents.size() << " parents";
+    }
+    ASSERT_TRUE(rec_.parents.count("camera_base"));
+    EXPECT_EQ(*rec_.parents["camera_base"].begin(), "map");
+    EXPECT_EQ(*rec_.parents["rgb_camera_link"].begin(), "camera_base");
+    tf2::BufferCore buffer(ros::Duration(1000.0));
+    for (const auto& t : rec_.transforms) {
+      buffer.setTransform(t, "test", t.header.frame_id == "camera_base" && t.child_frame_id == "rgb_camera_link");
+    }
+    for (const auto& kf : keyframes) {
+      const auto tf = buffer.lookupTransform("map", "rgb_camera_link", kf.header.stamp);
+      const dqo::SE3 delta = to_se3(tf.transform).inverse() * to_se3(kf.pose);
+      EXPECT_LT(delta.translation().norm(), 1e-6);
+      EXPECT_LT(angle_deg(delta), 1e-4);
+    }
+  }
+
+  // ---- bad input: an unknown encoding, depth of NaNs. Skipped, logged, the node lives on.
+  Capture bad = captures_.back();
+  bad.stamp = captures_.back().stamp + ros::Duration(0.1);
+  bad.rgb.header.stamp = bad.depth.header.stamp = bad.info.header.stamp = bad.stamp;
+  bad.rgb.encoding = "yuv422";
+  EXPECT_FALSE(play(bad, false, 1.0));
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("yuv422"); }, 5.0)) << "no log line naming the encoding";
+
+  Capture nan_depth = captures_.back();
+  nan_depth.stamp = bad.stamp + ros::Duration(0.1);
+  nan_depth.rgb.header.stamp = nan_depth.depth.header.stamp = nan_depth.info.header.stamp = nan_depth.stamp;
+  nan_depth.depth.encoding = "32FC1";
+  nan_depth.depth.step = nan_depth.depth.width * 4;
+  nan_depth.depth.data.assign(static_cast<size_t>(nan_depth.depth.step) * nan_depth.depth.height, 0);
+  for (size_t i = 0; i + 4 <= nan_depth.depth.data.size(); i += 4) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    std::memcpy(&nan_depth.depth.data[i], &nan, 4);
+  }
+  EXPECT_FALSE(play(nan_depth, false, 1.0));
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("have depth"); }, 5.0)) << "no log line about missing depth";
+
+  // ---- time goes back: the bag loops. The node restarts and keyframes keep coming.
+  const size_t before = rec_.num_keyframes();
+  {
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    rec_.tf_stamps.clear();  // the replayed stamps were seen before: wait for new edges
+  }
+  for (size_t i = 0; i < 6; ++i) EXPECT_TRUE(play(captures_[i], i == 0)) << "frame " << i << " after the loop";
+  drain(captures_[5].stamp);
+  EXPECT_TRUE(rec_.logged("time went back")) << "no log line about the time jump";
+  {
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    ASSERT_GT(rec_.keyframes.size(), before);
+    const auto& first_after = rec_.keyframes[before];
+    EXPECT_EQ(first_after.header.stamp, captures_[0].stamp) << "the first frame after a reset is a keyframe";
+    EXPECT_GT(first_after.id, last_id) << "keyframe IDs are never reused";
+    for (const auto& [child, parents] : rec_.parents) EXPECT_EQ(parents.size(), 1u) << child;
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_tracking_node");
+  ros::NodeHandle nh;  // keeps the node alive for the whole run
+  return RUN_ALL_TESTS();
+}

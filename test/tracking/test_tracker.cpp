@@ -1,0 +1,228 @@
+// The tracker end to end on the synthetic `tiny` scene (20 frames orbiting a table, 160x120, no
+// noise): accuracy, keyframes, bundle adjustment corrections of registered frames, reset,
+// relocalisation after a jump and after being lost, bad input.
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "dqo_map/sim/renderer.h"
+#include "dqo_map/sim/scene_loader.h"
+#include "dqo_map/tracking/tracker.h"
+
+namespace {
+
+using dqo::SE3;
+using dqo::tracking::RgbdInput;
+using dqo::tracking::Tracker;
+using dqo::tracking::TrackerParams;
+using dqo::tracking::TrackingState;
+using dqo::tracking::TrackResult;
+
+class TinyScene : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    std::string error;
+    scene_ = dqo::sim::load_scene(std::string(DQO_SOURCE_DIR) + "/config/scenes/tiny.yaml", {},
+                                  &error)
+                 .value();
+    renderer_ = std::make_unique<dqo::sim::Renderer>(*scene_, 2);
+    frames_ = std::make_unique<std::vector<dqo::Frame>>();
+    for (int i = 0; i < renderer_->num_frames(); ++i) frames_->push_back(renderer_->render(i, false));
+  }
+  static void TearDownTestSuite() {
+    frames_.reset();
+    renderer_.reset();
+    scene_.reset();
+  }
+
+  static const dqo::Frame& frame(int i) { return (*frames_)[i]; }
+  static int num_frames() { return static_cast<int>(frames_->size()); }
+  static const dqo::PinholeCamera& camera() { return scene_->camera; }
+
+  static TrackResult track(Tracker* tracker, const dqo::Frame& f, double timestamp) {
+    RgbdInput input;
+    input.timestamp = timestamp;
+    input.rgb = &f.rgb;
+    input.depth = &f.depth;
+    return tracker->track(input);
+  }
+  static TrackResult track(Tracker* tracker, int i) {
+    return track(tracker, frame(i), frame(i).timestamp);
+  }
+
+  // Ground truth in the tracker's world (the first tracked frame's camera).
+  static SE3 truth(int i, int first = 0) { return frame(first).T_wc.inverse() * frame(i).T_wc; }
+
+  static double position_error(const SE3& estimate, const SE3& truth_pose) {
+    return (estimate.translation() - truth_pose.translation()).norm();
+  }
+  static double angle_deg(const SE3& a, const SE3& b) {
+    const double w = std::min(1.0, std::abs((a.inverse() * b).quaternion().w()));
+    return 2.0 * std::acos(w) * 180.0 / M_PI;
+  }
+
+  static inline std::optional<dqo::sim::Scene> scene_;
+  static inline std::unique_ptr<dqo::sim::Renderer> renderer_;
+  static inline std::unique_ptr<std::vector<dqo::Frame>> frames_;
+};
+
+// Tracks the whole scene; returns the RMSE of the positions (the world is the first camera's,
+// so no alignment is needed) and checks every frame was tracked.
+double track_all(Tracker* tracker, int first, int count,
+                 const std::function<TrackResult(Tracker*, int)>& track_one,
+                 const std::function<SE3(int)>& truth_of, double* max_angle_deg) {
+  double sum = 0.0;
+  *max_angle_deg = 0.0;
+  for (int i = first; i < first + count; ++i) {
+    const TrackResult r = track_one(tracker, i);
+    EXPECT_EQ(r.state, TrackingState::kOk) << "frame " << i;
+    EXPECT_FALSE(r.predicted) << "frame " << i;
+    if (r.state != TrackingState::kOk) return INFINITY;
+    const SE3 t = truth_of(i);
+    sum += (r.T_wc.translation() - t.translation()).squaredNorm();
+    const double w = std::min(1.0, std::abs((r.T_wc.inverse() * t).quaternion().w()));
+    *max_angle_deg = std::max(*max_angle_deg, 2.0 * std::acos(w) * 180.0 / M_PI);
+  }
+  return std::sqrt(sum / count);
+}
+
+TEST_F(TinyScene, TrackedWithAteBelowOneCentimetre) {
+  Tracker tracker(camera(), TrackerParams{});
+  double max_angle = 0.0;
+  const double ate = track_all(
+      &tracker, 0, num_frames(), [](Tracker* t, int i) { return track(t, i); },
+      [](int i) { return truth(i); }, &max_angle);
+  EXPECT_LT(ate, 0.01);
+  EXPECT_LT(max_angle, 1.0);
+}
+
+TEST_F(TinyScene, FeaturesAloneTrackToo) {
+  TrackerParams params;
+  params.use_dense = false;
+  Tracker tracker(camera(), params);
+  double max_angle = 0.0;
+  const double ate = track_all(
+      &tracker, 0, num_frames(), [](Tracker* t, int i) { return track(t, i); },
+      [](int i) { return truth(i); }, &max_angle);
+  EXPECT_LT(ate, 0.01);
+}
+
+TEST_F(TinyScene, KeyframesAndMapPointsGrowOverTheOrbit) {
+  Tracker tracker(camera(), TrackerParams{});
+  int new_keyframes = 0;
+  for (int i = 0; i < num_frames(); ++i) new_keyframes += track(&tracker, i).new_keyframe;
+  EXPECT_GE(tracker.num_keyframes(), 4u);
+  EXPECT_EQ(static_cast<size_t>(new_keyframes), tracker.num_keyframes());
+  EXPECT_GT(tracker.num_map_points(), 100u);
+}
+
+TEST_F(TinyScene, BundleAdjustmentCorrectsRegisteredFrames) {
+  Tracker tracker(camera(), TrackerParams{});
+  std::vector<uint64_t> registered;
+  for (int i = 0; i < num_frames(); ++i) {
+    if (track(&tracker, i).state != TrackingState::kOk) continue;
+    tracker.register_frame(1000 + i);
+    registered.push_back(1000 + i);
+  }
+  tracker.wait_for_mapping();
+  EXPECT_GT(tracker.local_ba_runs(), 0u);
+  const std::vector<dqo::tracking::CorrectedPose> corrected = tracker.corrected_frames();
+  ASSERT_FALSE(corrected.empty());
+  for (const auto& c : corrected) {
+    ASSERT_GE(c.id, 1000u);
+    ASSERT_LT(c.id, 1000u + num_frames());
+    EXPECT_LT(position_error(c.T_wc, truth(static_cast<int>(c.id - 1000))), 0.02) << c.id;
+  }
+  EXPECT_TRUE(tracker.corrected_frames().empty());  // handed over once
+}
+
+TEST_F(TinyScene, ResetStartsANewMap) {
+  Tracker tracker(camera(), TrackerParams{});
+  for (int i = 0; i < 8; ++i) {
+    track(&tracker, i);
+    tracker.register_frame(i);
+  }
+  ASSERT_GT(tracker.num_keyframes(), 0u);
+  tracker.reset();
+  EXPECT_EQ(tracker.state(), TrackingState::kNotInitialised);
+  EXPECT_EQ(tracker.num_keyframes(), 0u);
+  EXPECT_EQ(tracker.num_map_points(), 0u);
+  tracker.wait_for_mapping();
+  EXPECT_TRUE(tracker.corrected_frames().empty());
+
+  // A new world: the first frame after the reset is the origin.
+  const TrackResult first = track(&tracker, 10);
+  EXPECT_EQ(first.state, TrackingState::kOk);
+  EXPECT_LT(first.T_wc.translation().norm(), 1e-9);
+  double max_angle = 0.0;
+  const double ate = track_all(
+      &tracker, 11, num_frames() - 11, [](Tracker* t, int i) { return track(t, i); },
+      [](int i) { return truth(i, 10); }, &max_angle);
+  EXPECT_LT(ate, 0.01);
+}
+
+TEST_F(TinyScene, RecoversAfterAJumpToAViewSeenBefore) {
+  Tracker tracker(camera(), TrackerParams{});
+  for (int i = 0; i < 12; ++i) ASSERT_EQ(track(&tracker, i).state, TrackingState::kOk);
+  // Back to the view of frame 3, 144° of orbit away; the motion model still says "keep turning".
+  const int target = 3;
+  bool recovered = false;
+  for (int attempt = 0; attempt < 3 && !recovered; ++attempt) {
+    const dqo::Frame view =
+        renderer_->render_view(frame(target).T_wc, target, 1.0 + 0.1 * attempt, false);
+    const TrackResult r = track(&tracker, view, 1.0 + 0.1 * attempt);
+    recovered = r.state == TrackingState::kOk && !r.predicted &&
+                position_error(r.T_wc, truth(target)) < 0.02;
+  }
+  EXPECT_TRUE(recovered);
+}
+
+TEST_F(TinyScene, RelocalisesAfterBeingLost) {
+  TrackerParams params;
+  Tracker tracker(camera(), params);
+  for (int i = 0; i < 10; ++i) ASSERT_EQ(track(&tracker, i).state, TrackingState::kOk);
+  // Covered lens: no texture, no depth.
+  dqo::Frame blank = frame(0);
+  std::fill(blank.rgb.data.begin(), blank.rgb.data.end(), 128);
+  std::fill(blank.depth.data.begin(), blank.depth.data.end(), 0.0f);
+  double t = 1.0;
+  TrackResult r;
+  for (int i = 0; i < params.frames_to_lost; ++i) r = track(&tracker, blank, t += 0.03);
+  EXPECT_EQ(r.state, TrackingState::kLost);
+  EXPECT_EQ(tracker.state(), TrackingState::kLost);
+  r = track(&tracker, blank, t += 0.03);
+  EXPECT_EQ(r.state, TrackingState::kLost);
+
+  r = track(&tracker, frame(5), t += 0.03);
+  EXPECT_EQ(r.state, TrackingState::kOk);
+  EXPECT_TRUE(r.relocalised);
+  EXPECT_LT(position_error(r.T_wc, truth(5)), 0.02);
+  // And it keeps tracking from there.
+  r = track(&tracker, frame(6), t += 0.03);
+  EXPECT_EQ(r.state, TrackingState::kOk);
+  EXPECT_LT(position_error(r.T_wc, truth(6)), 0.02);
+}
+
+TEST_F(TinyScene, BadInputIsSkipped) {
+  Tracker tracker(camera(), TrackerParams{});
+  RgbdInput none;
+  EXPECT_EQ(tracker.track(none).state, TrackingState::kNotInitialised);
+  dqo::ImageRgb8 small(10, 10, 3);
+  dqo::DepthImage small_depth(10, 10, 1);
+  RgbdInput wrong_size;
+  wrong_size.rgb = &small;
+  wrong_size.depth = &small_depth;
+  EXPECT_EQ(tracker.track(wrong_size).state, TrackingState::kNotInitialised);
+  ASSERT_EQ(track(&tracker, 0).state, TrackingState::kOk);
+  EXPECT_EQ(tracker.track(wrong_size).state, TrackingState::kOk);  // skipped, state kept
+  EXPECT_EQ(tracker.track(none).state, TrackingState::kOk);
+  const TrackResult r = track(&tracker, 1);
+  EXPECT_EQ(r.state, TrackingState::kOk);
+  EXPECT_LT(position_error(r.T_wc, truth(1)), 0.01);
+}
+
+}  // namespace
