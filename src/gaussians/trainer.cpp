@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 #include <utility>
 
 namespace dqo::gs {
@@ -45,6 +46,13 @@ void GaussianTrainer::sync_state() {
 
 KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   const auto t0 = std::chrono::steady_clock::now();
+  const int w = keyframe.camera.width, h = keyframe.camera.height;
+  if (w <= 0 || h <= 0 || !keyframe.rgb.same_size(w, h) || keyframe.rgb.channels != 3 ||
+      !keyframe.depth.same_size(w, h) || keyframe.depth.channels != 1 ||
+      (!keyframe.labels.empty() &&
+       (!keyframe.labels.same_size(w, h) || keyframe.labels.channels != 1))) {
+    throw std::invalid_argument("GaussianTrainer::add_keyframe: images do not match the camera");
+  }
   KeyframeReport report;
   ++keyframe_count_;
 
@@ -94,7 +102,8 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   auto& stable = map_.stable();
   const auto& confidence = map_.confidences();
   for (size_t i = 0; i < map_.size(); ++i) {
-    if (!stable[i] && confidence[i] >= params_.stable_confidence) {
+    if (params_.stable_confidence > 0.f && !stable[i] &&
+        confidence[i] >= params_.stable_confidence) {
       stable[i] = 1;
       ++report.became_stable;
     }
@@ -440,7 +449,8 @@ void GaussianTrainer::prune(KeyframeReport* report) {
   std::vector<uint8_t> remove(n, 0);
   for (size_t i = 0; i < n; ++i) {
     const float s = std::max({log_scale[3 * i], log_scale[3 * i + 1], log_scale[3 * i + 2]});
-    if (!stable[i] && now - birth[i] > static_cast<uint32_t>(params_.max_unstable_age)) {
+    if (params_.max_unstable_age > 0 && !stable[i] &&
+        now - birth[i] > static_cast<uint32_t>(params_.max_unstable_age)) {
       remove[i] = 1;
       ++report->pruned_stale;
     } else if (s > max_log_scale) {

@@ -73,6 +73,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "dqo_eval_ate: %s\n", error.c_str());
     return 1;
   }
+  if (2 * static_cast<size_t>(r->matched) < estimate->size()) {
+    std::fprintf(stderr, "dqo_eval_ate: warning: only %d of %zu estimated poses have ground truth within %g s\n",
+                 r->matched, estimate->size(), params.max_time_difference);
+  }
   std::printf("matched: %d of %zu estimated poses (ground truth: %zu poses, max dt %g s)\n", r->matched,
               estimate->size(), ground_truth->size(), params.max_time_difference);
   if (params.with_scale) std::printf("scale: %.6f\n", r->scale);

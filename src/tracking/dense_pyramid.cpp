@@ -258,8 +258,6 @@ void gather_samples(const DenseParams& params, bool colour, Level* L) {
     S.nx[j] = s[i].n.x();
     S.ny[j] = s[i].n.y();
     S.nz[j] = s[i].n.z();
-    const float sz = k * z * z;
-    S.inv_sigma2[j] = 1.0f / (floor2 + sz * sz);
     if (colour) {
       const RgbdPyramid::Texel& t = L->texels[i];
       S.intensity[j] = t.intensity;
@@ -270,6 +268,10 @@ void gather_samples(const DenseParams& params, bool colour, Level* L) {
     }
     depth_sum += z;
     ++j;
+  }
+  for (size_t i = 0; i < n; ++i) {  // apart, so that it vectorises
+    const float sz = k * S.z[i] * S.z[i];
+    S.inv_sigma2[i] = 1.0f / (floor2 + sz * sz);
   }
   L->mean_depth = n > 0 ? depth_sum / n : 0.0;
 }

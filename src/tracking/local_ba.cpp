@@ -58,7 +58,6 @@ LocalBaResult solve_local_ba(const LocalBaProblem& input, const PinholeCamera& c
   const auto start = std::chrono::steady_clock::now();
   LocalBaResult result;
   result.generation = input.generation;
-  result.newest_keyframe = input.newest_keyframe;
   if (input.keyframes.empty() || input.points.empty()) return result;
 
   std::vector<KeyframeBlock> kfs(input.keyframes.size());
@@ -127,6 +126,27 @@ LocalBaResult solve_local_ba(const LocalBaProblem& input, const PinholeCamera& c
       }
       ++residuals;
     }
+    // Dense odometry ties consecutive keyframes as tightly as it tied the frames between them,
+    // so the adjustment cannot trade the dense precision for the features' (weaker) geometry.
+    for (const BaOdometry& o : input.odometry) {
+      for (const int k : {o.from, o.to}) {
+        if (keyframe_used[k]) continue;
+        keyframe_used[k] = 1;
+        double* q = kfs[k].q_cw.coeffs().data();
+        double* t = kfs[k].t_cw.data();
+        problem.AddParameterBlock(q, 4, &quaternion_manifold);
+        problem.AddParameterBlock(t, 3);
+        ordering->AddElementToGroup(q, 1);
+        ordering->AddElementToGroup(t, 1);
+        if (input.keyframes[k].fixed) {
+          problem.SetParameterBlockConstant(q);
+          problem.SetParameterBlockConstant(t);
+        }
+      }
+      problem.AddResidualBlock(OdometryCost::Create(o.T_from_to, sqrt_information(o.information)),
+                               nullptr, kfs[o.from].q_cw.coeffs().data(), kfs[o.from].t_cw.data(),
+                               kfs[o.to].q_cw.coeffs().data(), kfs[o.to].t_cw.data());
+    }
     if (residuals == 0) return result;
     // Gauge: the fixed keyframes (at least one, the tracker makes sure) hold the map in place;
     // without one the whole window could drift freely.
@@ -161,8 +181,6 @@ LocalBaResult solve_local_ba(const LocalBaProblem& input, const PinholeCamera& c
     if (input.keyframes[i].fixed) continue;
     result.keyframes.emplace_back(input.keyframes[i].id, SE3(kfs[i].q_cw, kfs[i].t_cw).inverse());
   }
-  if (!input.keyframes[0].fixed)
-    result.correction = SE3(kfs[0].q_cw, kfs[0].t_cw).inverse() * input.keyframes[0].T_wc.inverse();
   for (size_t i = 0; i < points.size(); ++i) result.points.emplace_back(input.points[i].id, points[i]);
   for (size_t i = 0; i < input.observations.size(); ++i) {
     if (!outlier[i]) continue;

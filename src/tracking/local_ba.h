@@ -42,22 +42,24 @@ struct BaObservation {
   double depth_sigma = 0.0;  // σ of the depth residual; 0: depth_sigma(depth)
 };
 
+// Dense odometry between two keyframes of the problem (OdometryCost).
+struct BaOdometry {
+  int from = 0;  // indices into LocalBaProblem::keyframes
+  int to = 0;
+  SE3 T_from_to;
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
+};
+
 struct LocalBaProblem {
   uint64_t generation = 0;  // the tracker's map generation (a reset starts a new one)
-  // The newest keyframe of the map when the snapshot was taken; keyframes[0] is the one that
-  // triggered the adjustment. Keyframes created while the worker runs are moved with it.
-  uint64_t newest_keyframe = 0;
   std::vector<BaKeyframe> keyframes;
   std::vector<BaPoint> points;
   std::vector<BaObservation> observations;
+  std::vector<BaOdometry> odometry;
 };
 
 struct LocalBaResult {
   uint64_t generation = 0;
-  uint64_t newest_keyframe = 0;  // as in the problem
-  // How the adjustment moved the triggering keyframe: T_wc(after) = correction * T_wc(before).
-  // Applied to what the tracker built meanwhile, so that it stays consistent with the rest.
-  SE3 correction;
   bool ok = false;
   std::vector<std::pair<uint64_t, SE3>> keyframes;  // the free ones, T_wc after adjustment
   std::vector<std::pair<uint64_t, Eigen::Vector3d>> points;

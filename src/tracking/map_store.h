@@ -45,6 +45,11 @@ struct KeyFrame {
   // Covisibility: other keyframes sharing at least one map point, with the count.
   std::unordered_map<uint64_t, int> covisibility;
   std::vector<std::pair<int, uint64_t>> ordered_covisible;  // (weight, ID), heaviest first
+  // Dense odometry from the previous keyframe (kNoId when some frame between them was not
+  // densely aligned): the tracked relative pose and its information (right perturbation).
+  uint64_t odometry_from = kNoId;
+  SE3 T_odometry;  // T_from_this
+  Eigen::Matrix<double, 6, 6> odometry_information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 class MapStore {

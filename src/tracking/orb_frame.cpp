@@ -262,7 +262,10 @@ void OrbExtractor::extract_grey(const cv::Mat& grey, const DepthImage* depth, Or
     for (size_t i = 0; i < level_keypoints.size(); ++i) {
       const cv::KeyPoint& k = level_keypoints[i];
       Keypoint kp;
-      kp.uv = Eigen::Vector2f(k.pt.x * s, k.pt.y * s);
+      // Pixel centres at integer coordinates on every level (cv::resize's convention): level
+      // pixel x covers level-0 [x s, (x + 1) s), centre (x + 0.5) s - 0.5. ORB-SLAM2's x s is up
+      // to 1.3 px off at the top level.
+      kp.uv = Eigen::Vector2f((k.pt.x + 0.5f) * s - 0.5f, (k.pt.y + 0.5f) * s - 0.5f);
       kp.angle = k.angle;
       kp.response = k.response;
       kp.octave = l;

@@ -81,6 +81,7 @@ Section schema(TrackingConfig& c) {
                                   {"min_inlier_ratio", &t.dense.min_inlier_ratio, 0.0, 1.0},
                                   {"max_update_m", &t.dense.max_update_m, 0.0, kInf},
                                   {"max_update_deg", &t.dense.max_update_deg, 0.0, 180.0},
+                                  {"max_whitened_rms", &t.dense.max_whitened_rms, 0.0, kInf},
                                   {"convergence_px", &t.dense.convergence_px, 0.0, kInf},
                               },
                               {}},

@@ -149,7 +149,7 @@ PoseOptimisationResult optimise_pose(const SE3& T_wc_guess,
     }
     ceres::Solver::Summary summary;
     ceres::Solve(options, &problem, &summary);
-    result.converged = summary.termination_type == ceres::CONVERGENCE ||
+    result.solved = summary.termination_type == ceres::CONVERGENCE ||
                        summary.termination_type == ceres::NO_CONVERGENCE;
     result.T_wc = SE3(q_cw, t_cw).inverse();
 

@@ -35,7 +35,7 @@ struct PoseOptimisationResult {
   std::vector<char> inlier;  // per observation
   int inliers = 0;
   double prior_chi2 = 0.0;   // δᵀΛδ of the dense prior at the solution (0 without one)
-  bool converged = false;
+  bool solved = false;        // Ceres ran to convergence or to its iteration limit
 };
 
 // Chi-square thresholds at 95 %: 2 DoF for a reprojection, 3 with depth (ORB-SLAM2's values).

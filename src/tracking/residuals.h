@@ -176,6 +176,49 @@ struct DensePriorCost {
   Eigen::Matrix<double, 6, 6> sqrt_information_;
 };
 
+// Dense odometry between two keyframes in bundle adjustment: the tracker composed the dense
+// alignments of the frames between them into T̂_ab (keyframe b in keyframe a's frame) with
+// information Λ for the right perturbation T_ab = T̂_ab exp(δ). With both poses free:
+//   E = T̂_ab⁻¹ T_aw T_wb = T̂_ba T_a_cw (T_b_cw)⁻¹ = exp(δ),   r = S [t_E; 2 vec(q_E)].
+struct OdometryCost {
+  OdometryCost(const SE3& T_ab_measured, const Eigen::Matrix<double, 6, 6>& sqrt_information)
+      : q_ba_(T_ab_measured.inverse().quaternion()),
+        t_ba_(T_ab_measured.inverse().translation()),
+        sqrt_information_(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* q_a_raw, const T* t_a_raw, const T* q_b_raw, const T* t_b_raw,
+                  T* r) const {
+    using Q = Eigen::Quaternion<T>;
+    using V = Eigen::Matrix<T, 3, 1>;
+    const Eigen::Map<const Q> q_a(q_a_raw), q_b(q_b_raw);  // q_cw of a and b
+    const Eigen::Map<const V> t_a(t_a_raw), t_b(t_b_raw);
+    const Q q_bw_inv = q_b.conjugate();  // T_wb
+    const V t_wb = -(q_bw_inv * t_b);
+    const Q q_ab = q_a * q_bw_inv;  // T_aw T_wb
+    const V t_ab = q_a * t_wb + t_a;
+    Q q_e = q_ba_.cast<T>() * q_ab;
+    const V t_e = q_ba_.cast<T>() * t_ab + t_ba_.cast<T>();
+    if (q_e.w() < T(0.0)) q_e.coeffs() = -q_e.coeffs();
+    Eigen::Matrix<T, 6, 1> delta;
+    delta.template head<3>() = t_e;
+    delta.template tail<3>() = T(2.0) * q_e.vec();
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> residual(r);
+    residual = sqrt_information_.cast<T>() * delta;
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const SE3& T_ab_measured,
+                                     const Eigen::Matrix<double, 6, 6>& sqrt_information) {
+    return new ceres::AutoDiffCostFunction<OdometryCost, 6, 4, 3, 4, 3>(
+        new OdometryCost(T_ab_measured, sqrt_information));
+  }
+
+  Eigen::Quaterniond q_ba_;
+  Eigen::Vector3d t_ba_;
+  Eigen::Matrix<double, 6, 6> sqrt_information_;
+};
+
 // S with SᵀS = Λ for a symmetric positive semi-definite Λ (negative eigenvalues clamped to 0).
 Eigen::Matrix<double, 6, 6> sqrt_information(const Eigen::Matrix<double, 6, 6>& information);
 

@@ -4,9 +4,9 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
-#include <ctime>
 #include <unordered_set>
+
+#include <Eigen/Eigenvalues>
 
 #include "relocaliser.h"
 #include "tracker_impl.h"
@@ -24,12 +24,6 @@ const char* to_string(TrackingState state) {
   }
   return "unknown";
 }
-
-double g_prof[8] = {0};
-inline double cpu_ms() { timespec ts; clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts); return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6; }
-#define PROF_T(x) const double x = cpu_ms()
-#define PROF_MS(a, b) ((b) - (a))
-struct ProfPrint { ~ProfPrint() { fprintf(stderr, "PROF extract %.0f pyramid %.0f dense %.0f features %.0f accept %.0f\n", g_prof[0], g_prof[1], g_prof[2], g_prof[3], g_prof[4]); } } g_prof_print;
 
 namespace {
 
@@ -69,31 +63,32 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
 
   TrackedFrame frame;
   frame.number = ++frame_counter_;
-  PROF_T(t0);
   if (params_.use_features) extractor_.extract(*input.rgb, *input.depth, &frame.features);
   frame.map_points.assign(frame.features.size(), kNoId);
-  PROF_T(t1);
-  std::unique_ptr<RgbdPyramid> pyramid;
-  if (params_.use_dense)
-    pyramid = std::make_unique<RgbdPyramid>(camera_, *input.rgb, *input.depth, params_.dense);
-  PROF_T(t2);
-  g_prof[0] += PROF_MS(t0, t1);
-  g_prof[1] += PROF_MS(t1, t2);
+  // Two pyramids, swapped every frame: their buffers are reused (no allocation per frame).
+  const RgbdPyramid* pyramid = nullptr;
+  if (params_.use_dense) {
+    current_pyramid_.rebuild(camera_, *input.rgb, *input.depth, params_.dense);
+    pyramid = &current_pyramid_;
+  }
 
   const int features = static_cast<int>(frame.features.size());
   switch (state_.load()) {
     case TrackingState::kNotInitialised:
-      result = initialise(&frame, pyramid.get());
+      result = initialise(&frame, pyramid);
       break;
     case TrackingState::kOk:
-      result = track_frame(&frame, pyramid.get());
+      result = track_frame(&frame, pyramid);
       break;
     case TrackingState::kLost:
       result = track_lost(&frame);
       break;
   }
   result.features = features;
-  last_pyramid_ = std::move(pyramid);
+  if (pyramid != nullptr) {
+    std::swap(current_pyramid_, last_pyramid_);
+    has_last_pyramid_ = true;
+  }
   result.milliseconds =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return result;
@@ -124,15 +119,11 @@ TrackResult Tracker::Impl::initialise(TrackedFrame* frame, const RgbdPyramid* py
 TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* pyramid) {
   TrackResult result;
   const SE3 T_wc_mm = last_->T_wc * (has_velocity_ ? velocity_ : SE3());
-  PROF_T(a0);
   const std::optional<DensePrior> prior = align_to_last(pyramid);
-  PROF_T(a1);
   const FeatureOutcome features = track_features(frame, prior ? &*prior : nullptr, T_wc_mm);
-  PROF_T(a2);
-  g_prof[2] += PROF_MS(a0, a1);
-  g_prof[3] += PROF_MS(a1, a2);
 
   if (features.ok) {
+    accumulate_odometry(prior ? &*prior : nullptr, features.T_wc);
     accept(frame, features.T_wc, features.inliers, true, true, &result);
     return result;
   }
@@ -140,9 +131,11 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
     // Features too few (a plain scene, a fast turn): the dense alignment holds the pose, fused
     // with whatever features agreed with it.
     const SE3 T_wc = features.used_prior ? features.T_wc : prior->T_w_ref * prior->T_ref_cur;
+    accumulate_odometry(&*prior, T_wc);
     accept(frame, T_wc, features.inliers, false, true, &result);
     return result;
   }
+  odometry_valid_ = false;
   // Neither held: try to relocalise at once rather than drift on the motion model.
   SE3 T_wc;
   int inliers = 0;
@@ -174,6 +167,7 @@ TrackResult Tracker::Impl::track_lost(TrackedFrame* frame) {
   if (!relocalise_frame(frame, &T_wc, &inliers)) return result;
   state_ = TrackingState::kOk;
   has_velocity_ = false;
+  odometry_valid_ = false;
   last_relocalised_frame_ = frame->number;
   accept(frame, T_wc, inliers, true, false, &result);
   result.relocalised = true;
@@ -185,14 +179,10 @@ void Tracker::Impl::accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bo
   failures_ = 0;
   frame->T_wc = T_wc;
   count_found(*frame);
-  last_inliers_ = inliers;
-  PROF_T(k0);
   if (need_keyframe(*frame, inliers, features_ok)) {
     create_keyframe(frame);
     result->new_keyframe = true;
   }
-  PROF_T(k1);
-  g_prof[4] += PROF_MS(k0, k1);
   finish_frame(frame, T_wc, update_velocity);
   result->state = TrackingState::kOk;
   result->T_wc = T_wc;
@@ -211,10 +201,43 @@ void Tracker::Impl::finish_frame(TrackedFrame* frame, const SE3& T_wc, bool upda
   last_ = std::move(*frame);
 }
 
+namespace {
+
+// Adjoint of T on [rho; phi]: T exp(xi) = exp(Ad(T) xi) T.
+Eigen::Matrix<double, 6, 6> adjoint(const SE3& T) {
+  const Eigen::Matrix3d R = T.rotation();
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+  A.topLeftCorner<3, 3>() = R;
+  A.topRightCorner<3, 3>() = skew(T.translation()) * R;
+  A.bottomRightCorner<3, 3>() = R;
+  return A;
+}
+
+// Inverse of a symmetric positive semi-definite matrix whose small eigenvalues stand for "no
+// information" (a direction dense alignment could not see): they become a huge variance.
+Eigen::Matrix<double, 6, 6> inverse_psd(const Eigen::Matrix<double, 6, 6>& M, double floor) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(0.5 * (M + M.transpose()));
+  const Eigen::Matrix<double, 6, 1> inv = eig.eigenvalues().cwiseMax(floor).cwiseInverse();
+  return eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+}  // namespace
+
+void Tracker::Impl::accumulate_odometry(const DensePrior* prior, const SE3& T_wc) {
+  if (prior == nullptr || !last_) {
+    odometry_valid_ = false;
+    return;
+  }
+  // Right perturbations compose as Σ_ac = Ad(T_cb) Σ_ab Ad(T_cb)ᵀ + Σ_bc.
+  const Eigen::Matrix<double, 6, 6> A = adjoint(T_wc.inverse() * last_->T_wc);
+  odometry_covariance_ =
+      A * odometry_covariance_ * A.transpose() + inverse_psd(prior->information, 1e-3);
+}
+
 std::optional<DensePrior> Tracker::Impl::align_to_last(const RgbdPyramid* pyramid) {
-  if (pyramid == nullptr || !last_pyramid_ || !last_) return std::nullopt;
+  if (pyramid == nullptr || !has_last_pyramid_ || !last_) return std::nullopt;
   const DenseResult dense =
-      align_dense(*last_pyramid_, *pyramid, has_velocity_ ? velocity_ : SE3(), params_.dense);
+      align_dense(last_pyramid_, *pyramid, has_velocity_ ? velocity_ : SE3(), params_.dense);
   if (!dense.ok) return std::nullopt;
   DensePrior prior;
   prior.T_w_ref = last_->T_wc;
@@ -233,7 +256,8 @@ FeatureOutcome Tracker::Impl::track_features(TrackedFrame* frame, const DensePri
 
   // The dense pose is good to a pixel or so: search the local map from it straight away.
   SE3 guess = prior != nullptr ? prior->T_w_ref * prior->T_ref_cur : T_wc_mm;
-  int matched = prior != nullptr ? search_local_map(frame, guess) : 0;
+  int matched =
+      prior != nullptr ? search_local_map(frame, guess, params_.search.dense_radius_px) : 0;
   if (matched < min_matches) {
     // No dense pose, or one the map disagrees with: frame to frame from the motion model, else
     // PnP against the last keyframe; the local map is searched from the pose they give.
@@ -243,7 +267,7 @@ FeatureOutcome Tracker::Impl::track_features(TrackedFrame* frame, const DensePri
       if (match_with_pnp(frame, &guess) == 0) return out;
     }
     update_local_map(*frame);
-    search_local_map(frame, guess);
+    search_local_map(frame, guess, params_.search.local_map_radius_px);
   }
 
   Refinement fused = refine(*frame, guess, prior, {});
@@ -401,7 +425,7 @@ void Tracker::Impl::update_local_map(const TrackedFrame& source) {
   }
 }
 
-int Tracker::Impl::search_local_map(TrackedFrame* frame, const SE3& T_wc) {
+int Tracker::Impl::search_local_map(TrackedFrame* frame, const SE3& T_wc, double radius) {
   std::unordered_set<uint64_t> matched;
   std::vector<char> taken(frame->features.size(), 0);
   for (size_t k = 0; k < frame->map_points.size(); ++k) {
@@ -425,7 +449,7 @@ int Tracker::Impl::search_local_map(TrackedFrame* frame, const SE3& T_wc) {
     candidates.push_back(c);
   }
   ProjectionSearch search;
-  search.radius_px = params_.search.local_map_radius_px;
+  search.radius_px = radius;
   // Soon after relocalisation the pose is rougher: a wider window (ORB-SLAM2).
   if (frame->number < last_relocalised_frame_ + 2) search.radius_px *= 2.0;
   search.levels_below = 1;
@@ -493,7 +517,7 @@ bool Tracker::Impl::relocalise_frame(TrackedFrame* frame, SE3* T_wc, int* inlier
   for (const auto& [k, point] : pnp.matches) frame->map_points[k] = point;
   update_local_map(*frame);
   last_relocalised_frame_ = frame->number;
-  search_local_map(frame, pnp.T_wc);
+  search_local_map(frame, pnp.T_wc, params_.search.local_map_radius_px);
   const Refinement refined = refine(*frame, pnp.T_wc, nullptr, {});
   if (refined.map_inliers < params_.reloc.min_inliers) {
     std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);

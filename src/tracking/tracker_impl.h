@@ -71,13 +71,14 @@ struct Tracker::Impl {
   int match_last_frame(TrackedFrame* frame, const SE3& T_wc_guess, double radius,
                        std::vector<PoseObservation>* temporary);
   int match_with_pnp(TrackedFrame* frame, SE3* T_wc);
-  int search_local_map(TrackedFrame* frame, const SE3& T_wc);
+  int search_local_map(TrackedFrame* frame, const SE3& T_wc, double radius);
   void update_local_map(const TrackedFrame& frame);
   Refinement refine(const TrackedFrame& frame, const SE3& T_wc_guess, const DensePrior* prior,
                     const std::vector<PoseObservation>& extra) const;
   void keep_inliers(TrackedFrame* frame, const Refinement& refinement) const;
   std::vector<uint64_t> relocalisation_candidates();
   void finish_frame(TrackedFrame* frame, const SE3& T_wc, bool update_velocity);
+  void accumulate_odometry(const DensePrior* prior, const SE3& T_wc);
   void accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
               bool update_velocity, TrackResult* result);
 
@@ -92,8 +93,6 @@ struct Tracker::Impl {
   void submit_local_ba();
   void apply_ba_results();
   void apply_ba_result(const LocalBaResult& result);
-  void follow_map(TrackedFrame* frame, const std::unordered_map<uint64_t, SE3>& moved,
-                  const SE3& correction);
   void register_frame(uint64_t id);
   std::vector<CorrectedPose> corrected_frames();
   void reset();
@@ -110,7 +109,9 @@ struct Tracker::Impl {
   int failures_ = 0;  // consecutive frames where neither features nor dense held
   uint64_t frame_counter_ = 0;
   std::optional<TrackedFrame> last_;
-  std::unique_ptr<RgbdPyramid> last_pyramid_;
+  RgbdPyramid current_pyramid_;
+  RgbdPyramid last_pyramid_;  // the last frame's
+  bool has_last_pyramid_ = false;
   SE3 velocity_;  // T_last_cur of the last tracked step
   bool has_velocity_ = false;
 
@@ -119,12 +120,15 @@ struct Tracker::Impl {
   uint64_t last_keyframe_ = kNoId;
   uint64_t last_keyframe_frame_ = 0;
   uint64_t last_relocalised_frame_ = 0;
-  int last_inliers_ = 0;
   std::vector<uint64_t> local_keyframes_;
   std::vector<uint64_t> local_points_;
   std::vector<uint64_t> recent_points_;  // created lately: culled unless re-found
   size_t reloc_cursor_ = 0;
   uint64_t ba_wanted_ = kNoId;  // keyframe whose adjustment waits for the worker
+  // Covariance of the dense odometry since the last keyframe (right perturbation of the current
+  // frame relative to it); invalid once a frame went without dense alignment.
+  Eigen::Matrix<double, 6, 6> odometry_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
+  bool odometry_valid_ = false;
 
   std::mutex registry_mutex_;  // guards the two below (corrected_frames() is thread-safe)
   std::unordered_map<uint64_t, RegisteredFrame> registered_;

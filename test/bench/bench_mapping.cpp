@@ -50,8 +50,9 @@ bool set_param(const std::string& assignment, GaussianTrainer::Params* p) {
          f("max_depth", &p->max_depth) || f("scale_factor", &p->scale_factor) ||
          f("flatness", &p->flatness) || f("max_stretch", &p->max_stretch) ||
          i("normal_radius_px", &p->normal_radius_px) ||
+         f("newest_share", &p->newest_share) ||
          b("transparent_for_colour_error", &p->transparent_for_colour_error) ||
-         i("iterations", &p->iterations) || i("window", &p->window) || f("newest_share", &p->newest_share) ||
+         i("iterations", &p->iterations) || i("window", &p->window) ||
          f("lambda_depth", &p->lambda_depth) || f("lambda_ins", &p->lambda_ins) ||
          f("lambda_ssim", &p->lambda_ssim) || b("normalise_depth", &p->normalise_depth) ||
          b("train_per_label", &p->train_per_label) ||

@@ -157,7 +157,6 @@ bool run_case(const Case& c, const Options& options, Row* row) {
   std::vector<dqo::eval::StampedPose> estimate, truth;
   std::vector<double> ms, cpu_ms, keypoints;
   int new_keyframes = 0;
-  std::map<uint64_t, dqo::SE3> dbg_tracked;
   for (size_t i = 0; i < frames.size(); ++i) {
     const RenderedFrame& f = frames[i];
     dqo::tracking::RgbdInput input;
@@ -170,7 +169,6 @@ bool run_case(const Case& c, const Options& options, Row* row) {
     ms.push_back(r.milliseconds);
     keypoints.push_back(r.features);
     new_keyframes += r.new_keyframe;
-    if (r.state == TrackingState::kOk) { tracker.register_frame(i); dbg_tracked[i] = r.T_wc; }
     truth.emplace_back(f.timestamp, f.T_wc);
     if (r.state == TrackingState::kLost) row->lost = true;
     row->predicted += r.predicted;
@@ -185,18 +183,6 @@ bool run_case(const Case& c, const Options& options, Row* row) {
     }
   }
   tracker.wait_for_mapping();
-  {
-    std::map<uint64_t, dqo::SE3> corr;
-    for (auto& cp : tracker.corrected_frames()) corr[cp.id] = cp.T_wc;
-    double e0 = 0, e1 = 0; int n = 0;
-    for (auto& [id, T] : dbg_tracked) {
-      auto it = corr.find(id); if (it == corr.end()) continue;
-      const dqo::SE3 gt = frames[0].T_wc.inverse() * frames[id].T_wc;
-      e0 += (T.translation() - gt.translation()).squaredNorm();
-      e1 += (it->second.translation() - gt.translation()).squaredNorm(); ++n;
-    }
-    std::printf("DBG corrected %d frames: rms before %.2f mm after %.2f mm\n", n, 1e3*std::sqrt(e0/std::max(n,1)), 1e3*std::sqrt(e1/std::max(n,1)));
-  }
 
   row->label = c.label;
   row->size = std::to_string(scene->camera.width) + "x" + std::to_string(scene->camera.height);

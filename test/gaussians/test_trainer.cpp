@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 
 #include "dqo_map/gaussians/render_metrics.h"
@@ -59,7 +61,7 @@ TEST(Trainer, TinyKeyframesReachQualityAndIds) {
     EXPECT_EQ(r.num_gaussians, trainer.map().size());
   }
   EXPECT_EQ(trainer.keyframes_seen(), frames.size());
-  EXPECT_EQ(trainer.keyframes_stored(), static_cast<size_t>(params.window));
+  EXPECT_EQ(trainer.keyframes_stored(), std::min<size_t>(params.window, frames.size()));
   for (const int f : frames) {
     RenderOutput out;
     trainer.render(tiny().camera, tiny_frame(f).T_wc, &out);
@@ -92,7 +94,10 @@ TEST(Trainer, FirstKeyframeCoversTheView) {
   // Object IDs come from the labels, and a second look at the same view adds (almost) nothing.
   EXPECT_GT(id_agreement(out, tiny_frame(0).instance), 0.9);
   const KeyframeReport again = trainer.add_keyframe(keyframe_of(0));
-  EXPECT_LT(again.added_missing + again.added_error, r.added_missing / 50);
+  EXPECT_LT(again.added_missing, r.added_missing / 100);
+  // Untrained (0 iterations), the render still differs in colour here and there: about
+  // error_sample_rate of those pixels get a Gaussian.
+  EXPECT_LT(again.added_error, 2 * params.error_sample_rate * again.error_pixels + 10);
 }
 
 TEST(Trainer, StabilisesAndFreezes) {
@@ -196,6 +201,37 @@ TEST(Trainer, RelabelRemovalAndPoses) {
   const KeyframeReport r = trainer.add_keyframe(keyframe_of(1));
   EXPECT_GT(r.added_missing + r.added_error, 0u);
   EXPECT_EQ(r.num_gaussians, trainer.map().size());
+}
+
+// IDs follow the labels: Gaussians of the book returned to the background by mistake take the
+// book's ID back after relabel_keyframes keyframes that show them on its pixels.
+TEST(Trainer, IdsFollowTheLabels) {
+  GaussianTrainer::Params params;
+  params.iterations = 20;
+  GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+  trainer.add_keyframe(keyframe_of(0));
+  const size_t book = trainer.map().indices_of(1).size();
+  ASSERT_GT(book, 50u);
+  GaussianMap map = trainer.map();
+  map.relabel(1, 0);
+  trainer.set_map(map);
+  const KeyframeReport r1 = trainer.add_keyframe(keyframe_of(0));
+  EXPECT_LT(trainer.map().indices_of(1).size(), book / 2);  // one keyframe of evidence: not yet
+  const KeyframeReport r2 = trainer.add_keyframe(keyframe_of(0));
+  EXPECT_GT(r2.relabelled, book * 8 / 10);
+  EXPECT_GT(trainer.map().indices_of(1).size(), book * 8 / 10);
+  EXPECT_LT(r1.relabelled + r2.relabelled, book * 3 / 2);  // hardly any other Gaussian moved
+}
+
+TEST(Trainer, RejectsImagesOfAnotherSize) {
+  GaussianTrainer trainer(GaussianTrainer::Params(), make_cpu_rasteriser(1));
+  TrainingKeyframe kf = keyframe_of(0);
+  kf.depth = DepthImage(10, 10, 1, 1.f);
+  EXPECT_THROW(trainer.add_keyframe(kf), std::invalid_argument);
+  kf = keyframe_of(0);
+  kf.labels = LabelImage(3, 3, 1, 0u);
+  EXPECT_THROW(trainer.add_keyframe(kf), std::invalid_argument);
+  EXPECT_TRUE(trainer.map().empty());
 }
 
 }  // namespace

@@ -59,6 +59,8 @@ class Tracker {
   Tracker(const Tracker&) = delete;
   Tracker& operator=(const Tracker&) = delete;
 
+  // Input that does not fit the camera (a missing image, another size, not 3 channels) is
+  // skipped: nothing changes and the result carries the current state (and the last pose).
   TrackResult track(const RgbdInput& input);
 
   // Forgets the map and starts over (a looping bag, a time jump backwards).
@@ -70,13 +72,16 @@ class Tracker {
   void register_frame(uint64_t id);
 
   // The registered frames whose poses bundle adjustment changed since the last call (thread-safe).
+  // The worker's results enter the map on the tracker's thread, at the start of the next track()
+  // (or in wait_for_mapping()); a frame corrected twice in between is reported once, latest pose.
   std::vector<CorrectedPose> corrected_frames();
 
   // Blocks until the local BA worker is idle and applies what it finished (tests, the end of an
   // offline run). Call on the thread that calls track().
   void wait_for_mapping();
 
-  TrackingState state() const;
+  TrackingState state() const;  // any thread
+  // The tracker's own map (not the mapping keyframes); on the tracker's thread.
   size_t num_keyframes() const;
   size_t num_map_points() const;
   uint64_t local_ba_runs() const;  // bundle adjustments applied to the map since construction

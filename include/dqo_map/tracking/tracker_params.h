@@ -57,8 +57,8 @@ struct PoseOptimiserParams {
 
 struct SearchParams {               // data association by projection (ORB-SLAM2's radii)
   double frame_radius_px = 7.0;     // last frame's points, from the motion model's guess
-  double dense_radius_px = 5.0;     // the same from the dense alignment's (better) guess
-  double local_map_radius_px = 5.0; // local map points, from the refined pose
+  double dense_radius_px = 5.0;     // local map points, from the dense alignment's pose
+  double local_map_radius_px = 5.0; // local map points, from a pose refined on features
   float local_map_ratio = 0.8f;     // best / second best Hamming distance at the same level
   int local_map_keyframes = 20;     // keyframes whose points make the local map
   int min_matches = 20;             // fewer after the frame-to-frame search: widen, then PnP
