@@ -127,7 +127,8 @@ double ins_loss(const RenderOutput& out, const ImageF& target_mask, const PixelW
     const float ins = std::min(out.ins[p], 1.f);
     const float e = ins - target_mask.data[p];
     loss += w * std::abs(e);
-    if (grad && out.ins[p] < 1.f) grad->ins[p] += static_cast<float>(lambda * norm * w) * sign_of(e);
+    if (grad && out.ins[p] < 1.f)
+      grad->ins[p] += static_cast<float>(lambda * norm * w) * sign_of(e);
   }
   return loss * norm;
 }
@@ -138,7 +139,8 @@ double ins_loss(const RenderOutput& out, const ImageF& target_mask, const PixelW
 // With the target fixed, S depends on x through μx, E[x²] and E[xy]:
 //   ∂S/∂μx   = S (2μy/A − 2μy/B − 2μx/C + 2μx/D),  ∂S/∂E[x²] = −S/D,  ∂S/∂E[xy] = 2S/B,
 // and each of those is a blur G of x, x², x·y, so with g_p = dL/dS_p
-//   dL/dx_q = (Gᵀ a)_q + 2 x_q (Gᵀ b)_q + y_q (Gᵀ c)_q,  a = g ∂S/∂μx, b = g ∂S/∂E[x²], c = g ∂S/∂E[xy].
+//   dL/dx_q = (Gᵀ a)_q + 2 x_q (Gᵀ b)_q + y_q (Gᵀ c)_q,  a = g ∂S/∂μx, b = g ∂S/∂E[x²], c = g
+//   ∂S/∂E[xy].
 double ssim_loss(const RenderOutput& out, const ImageF& target, const PixelWeights& weights,
                  double lambda, OutputGradients* grad) {
   constexpr double kC1 = 0.01 * 0.01;

@@ -32,8 +32,7 @@ LabelImage labels_from_objects(const DepthImage& depth, const PinholeCamera& cam
     // The ellipsoid in the camera frame: x_o = Aᵀ (p_c − μ_c) / (s·axes), inside iff ‖x_o‖ ≤ 1.
     const DualQuadric q_c = obj.quadric.transformed(T_wc.inverse());
     const Eigen::Matrix3d Rt = q_c.rotation().transpose();
-    const Eigen::Vector3d inv_axes =
-        (params.ellipsoid_scale * q_c.semi_axes()).cwiseInverse();
+    const Eigen::Vector3d inv_axes = (params.ellipsoid_scale * q_c.semi_axes()).cwiseInverse();
     const Eigen::Vector3d& mu = q_c.centre();
     // Pixel (u, v) has its centre at integer coordinates: those with centres inside the box.
     const int u0 = std::max(0, static_cast<int>(std::ceil(obj.box.x_min)));

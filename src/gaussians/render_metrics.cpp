@@ -37,7 +37,8 @@ double psnr(const RenderOutput& out, const ImageRgb8& target, const std::vector<
   return mse > 0.0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
 }
 
-double depth_l1(const RenderOutput& out, const DepthImage& target, const std::vector<uint8_t>& mask) {
+double depth_l1(const RenderOutput& out, const DepthImage& target,
+                const std::vector<uint8_t>& mask) {
   const size_t n = static_cast<size_t>(out.width) * out.height;
   double sum = 0.0;
   size_t count = 0;

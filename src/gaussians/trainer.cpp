@@ -81,7 +81,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
     RenderOutput out;
     std::unique_ptr<RenderState> state;
     rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0), &out, &state);
-    review_gaussians(kf, out, *state);
+    review_gaussians(kf, *state);
     add_gaussians(kf, &out, &report);
   }
   sync_state();
@@ -114,8 +114,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
 
   report.num_gaussians = map_.size();
   for (size_t i = 0; i < map_.size(); ++i) report.num_unstable += stable[i] ? 0 : 1;
-  report.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;
 }
 
@@ -140,8 +139,7 @@ const GaussianTrainer::StoredKeyframe& GaussianTrainer::pick_keyframe() {
 // One backward pass with dL/d(rgb) = (1, [label = 0], [label != 0]) gives, per Gaussian, in its
 // colour gradient: its contribution to the view, Σ_p T_i α_i over the pixels it reaches, and how
 // much of it falls on background and on object pixels.
-void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderOutput& out,
-                                       const RenderState& state) {
+void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderState& state) {
   const bool check_visibility = params_.max_invisible_keyframes > 0;
   const bool check_labels = params_.relabel_fraction > 0.f;
   if (!check_visibility && !check_labels) return;
@@ -309,10 +307,14 @@ void GaussianTrainer::add_gaussian_at(const StoredKeyframe& kf, int u, int v, bo
   auto difference = [&](int du, int dv, Eigen::Vector3d* diff) {
     Eigen::Vector3d a, b;
     const bool has_a = neighbour(du, dv, &a), has_b = neighbour(-du, -dv, &b);
-    if (has_a && has_b) *diff = a - b;
-    else if (has_a) *diff = a - p_c;
-    else if (has_b) *diff = p_c - b;
-    else return false;
+    if (has_a && has_b)
+      *diff = a - b;
+    else if (has_a)
+      *diff = a - p_c;
+    else if (has_b)
+      *diff = p_c - b;
+    else
+      return false;
     return true;
   };
   const Eigen::Vector3d ray = p_c.normalized();

@@ -40,8 +40,12 @@ bool set_param(const std::string& assignment, GaussianTrainer::Params* p) {
   if (eq == std::string::npos) return false;
   const std::string name = assignment.substr(0, eq);
   const double v = std::atof(assignment.c_str() + eq + 1);
-  auto f = [&](const char* n, float* x) { return name == n ? (*x = static_cast<float>(v), true) : false; };
-  auto i = [&](const char* n, int* x) { return name == n ? (*x = static_cast<int>(v), true) : false; };
+  auto f = [&](const char* n, float* x) {
+    return name == n ? (*x = static_cast<float>(v), true) : false;
+  };
+  auto i = [&](const char* n, int* x) {
+    return name == n ? (*x = static_cast<int>(v), true) : false;
+  };
   auto b = [&](const char* n, bool* x) { return name == n ? (*x = v != 0.0, true) : false; };
   return f("missing_transmittance", &p->missing_transmittance) ||
          f("depth_error", &p->depth_error) || f("colour_error", &p->colour_error) ||
@@ -49,16 +53,15 @@ bool set_param(const std::string& assignment, GaussianTrainer::Params* p) {
          f("error_sample_rate", &p->error_sample_rate) || f("min_depth", &p->min_depth) ||
          f("max_depth", &p->max_depth) || f("scale_factor", &p->scale_factor) ||
          f("flatness", &p->flatness) || f("max_stretch", &p->max_stretch) ||
-         i("normal_radius_px", &p->normal_radius_px) ||
-         f("newest_share", &p->newest_share) ||
+         i("normal_radius_px", &p->normal_radius_px) || f("newest_share", &p->newest_share) ||
          b("transparent_for_colour_error", &p->transparent_for_colour_error) ||
          i("iterations", &p->iterations) || i("window", &p->window) ||
          f("lambda_depth", &p->lambda_depth) || f("lambda_ins", &p->lambda_ins) ||
          f("lambda_ssim", &p->lambda_ssim) || b("normalise_depth", &p->normalise_depth) ||
-         b("train_per_label", &p->train_per_label) ||
-         f("lr_position", &p->adam.lr_position) || f("lr_log_scale", &p->adam.lr_log_scale) ||
-         f("lr_rotation", &p->adam.lr_rotation) || f("lr_colour", &p->adam.lr_colour) ||
-         f("lr_opacity", &p->adam.lr_opacity) || f("stable_confidence", &p->stable_confidence) ||
+         b("train_per_label", &p->train_per_label) || f("lr_position", &p->adam.lr_position) ||
+         f("lr_log_scale", &p->adam.lr_log_scale) || f("lr_rotation", &p->adam.lr_rotation) ||
+         f("lr_colour", &p->adam.lr_colour) || f("lr_opacity", &p->adam.lr_opacity) ||
+         f("stable_confidence", &p->stable_confidence) ||
          i("max_unstable_age", &p->max_unstable_age) || f("max_scale", &p->max_scale) ||
          i("max_invisible_keyframes", &p->max_invisible_keyframes) ||
          f("min_contribution", &p->min_contribution) ||
@@ -123,7 +126,8 @@ std::vector<uint8_t> observed_mask(const dqo::PinholeCamera& cam, const dqo::Fra
         const Eigen::Vector3d p_c = kf.T_wc.inverse() * p_w;
         if (p_c.z() <= 0.0) continue;
         const Eigen::Vector2d uv = cam.project(p_c);
-        const int ku = static_cast<int>(std::lround(uv.x())), kv = static_cast<int>(std::lround(uv.y()));
+        const int ku = static_cast<int>(std::lround(uv.x())),
+                  kv = static_cast<int>(std::lround(uv.y()));
         if (ku < 0 || kv < 0 || ku >= cam.width || kv >= cam.height) continue;
         const float dk = kf.depth.at(ku, kv);
         if (dk > 0.f && std::abs(dk - p_c.z()) < 0.03) {
@@ -159,10 +163,11 @@ struct Metrics {
   }
   void print(const char* name) const {
     if (n == 0) return;
-    std::printf("%-10s %3d views  PSNR %6.2f dB (clean %6.2f)  depth L1 %5.2f cm (clean %5.2f)  "
-                "IDs %6.2f %%\n",
-                name, n, psnr / n, psnr_clean / n, 100 * depth / n, 100 * depth_clean / n,
-                n_ids ? 100 * ids / n_ids : NAN);
+    std::printf(
+        "%-10s %3d views  PSNR %6.2f dB (clean %6.2f)  depth L1 %5.2f cm (clean %5.2f)  "
+        "IDs %6.2f %%\n",
+        name, n, psnr / n, psnr_clean / n, 100 * depth / n, 100 * depth_clean / n,
+        n_ids ? 100 * ids / n_ids : NAN);
     std::printf("%-10s PSNR on surfaces some keyframe saw %6.2f dB (unseen: %.2f %% of pixels)\n",
                 "", psnr_observed / n, 100 * unobserved / n);
   }
@@ -182,7 +187,10 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const char* v = i + 1 < argc ? argv[i + 1] : nullptr;
-    auto take = [&]() { ++i; return v; };
+    auto take = [&]() {
+      ++i;
+      return v;
+    };
     if (a == "--no-noise") {
       noise = false;
     } else if (a == "--verbose") {
@@ -227,11 +235,11 @@ int main(int argc, char** argv) {
   const int max_keyframes = (renderer.num_frames() + every - 1) / every;
   if (keyframes <= 0 || keyframes > max_keyframes) keyframes = max_keyframes;
 
-  std::printf("bench_mapping: %s, %dx%d, %s, %d keyframes every %d frames, %d iterations, "
-              "window %d, stride %d, %d threads\n",
-              scene->name.c_str(), scene->camera.width, scene->camera.height,
-              noise ? "noisy" : "clean", keyframes, every, params.iterations, params.window,
-              params.missing_stride, threads);
+  std::printf(
+      "bench_mapping: %s, %dx%d, %s, %d keyframes every %d frames, %d iterations, "
+      "window %d, stride %d, %d threads\n",
+      scene->name.c_str(), scene->camera.width, scene->camera.height, noise ? "noisy" : "clean",
+      keyframes, every, params.iterations, params.window, params.missing_stride, threads);
 
   GaussianTrainer trainer(params, dqo::gs::make_cpu_rasteriser(threads));
   std::vector<double> seconds;
@@ -257,20 +265,24 @@ int main(int argc, char** argv) {
       const dqo::Frame f0 = renderer.render(0, noise);
       std::printf("        PSNR now %.2f, keyframe 0 %.2f; ", dqo::gs::psnr(now, f.rgb),
                   dqo::gs::psnr(first, f0.rgb));
-      std::printf("kf %3d: +%zu missing +%zu error (%zu/%zu px), stable +%zu, relabelled %zu, pruned %zu/%zu/%zu, "
-                  "%zu Gaussians (%zu unstable), loss %.4f -> %.4f, %.2f s\n",
-                  k, r.added_missing, r.added_error, r.missing_pixels, r.error_pixels,
-                  r.became_stable, r.relabelled, r.pruned_stale, r.pruned_oversized, r.pruned_invisible,
-                  r.num_gaussians, r.num_unstable, r.loss_first, r.loss_last, r.seconds);
+      std::printf(
+          "kf %3d: +%zu missing +%zu error (%zu/%zu px), stable +%zu, relabelled %zu, pruned "
+          "%zu/%zu/%zu, "
+          "%zu Gaussians (%zu unstable), loss %.4f -> %.4f, %.2f s\n",
+          k, r.added_missing, r.added_error, r.missing_pixels, r.error_pixels, r.became_stable,
+          r.relabelled, r.pruned_stale, r.pruned_oversized, r.pruned_invisible, r.num_gaussians,
+          r.num_unstable, r.loss_first, r.loss_last, r.seconds);
       std::fflush(stdout);
     }
   }
 
   Metrics on_keyframes, held_out;
   for (int k = 0; k < keyframes; ++k) {
-    for (const int frame : {k * every, k * every + every / 2}) {
-      if (frame >= renderer.num_frames() || (frame != k * every && k == keyframes - 1)) continue;
-      if (frame != k * every && every < 2) continue;
+    std::vector<int> frames = {k * every};
+    // The held-out frame half-way to the next keyframe (none after the last one).
+    if (every >= 2 && k + 1 < keyframes) frames.push_back(k * every + every / 2);
+    for (const int frame : frames) {
+      if (frame >= renderer.num_frames()) continue;
       const dqo::Frame noisy = renderer.render(frame, noise);
       const dqo::Frame clean = noise ? renderer.render(frame, false) : noisy;
       RenderOutput r;

@@ -17,7 +17,8 @@ GaussianMap random_map(size_t n, std::mt19937* rng) {
   for (size_t i = 0; i < n; ++i) {
     GaussianInit g;
     g.position = Eigen::Vector3f(u(*rng), u(*rng), 2.f + u(*rng));
-    g.log_scale = Eigen::Vector3f::Constant(-3.f) + 0.2f * Eigen::Vector3f(u(*rng), u(*rng), u(*rng));
+    g.log_scale =
+        Eigen::Vector3f::Constant(-3.f) + 0.2f * Eigen::Vector3f(u(*rng), u(*rng), u(*rng));
     g.rotation = Eigen::Vector4f(1.f, 0.1f * u(*rng), 0.1f * u(*rng), 0.1f * u(*rng)).normalized();
     g.colour = Eigen::Vector3f::Constant(0.5f) + 0.3f * Eigen::Vector3f(u(*rng), u(*rng), u(*rng));
     g.object_id = static_cast<uint32_t>(i % 3);

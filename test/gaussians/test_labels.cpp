@@ -43,8 +43,9 @@ SphereScene make_sphere_scene() {
   s.camera.fx = s.camera.fy = 70.0;
   s.camera.cx = 39.5;
   s.camera.cy = 29.5;
-  s.T_wc = SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, -0.3).normalized())),
-               Eigen::Vector3d(1.0, -0.5, 0.8));
+  s.T_wc =
+      SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, -0.3).normalized())),
+          Eigen::Vector3d(1.0, -0.5, 0.8));
   const Eigen::Vector3d c_c(0.1, -0.05, 2.0);
   s.centre_w = s.T_wc * c_c;
   s.depth = DepthImage(s.camera.width, s.camera.height, 1, 0.f);
@@ -55,7 +56,8 @@ SphereScene make_sphere_scene() {
       if (p % 13 == 0) continue;
       const Eigen::Vector3d d = s.camera.back_project(u, v, 1.0);  // z = 1 along the ray
       // |t d − c|² = r²: a t² − 2 b t + (|c|² − r²) = 0.
-      const double a = d.squaredNorm(), b = d.dot(c_c), cc = c_c.squaredNorm() - s.radius * s.radius;
+      const double a = d.squaredNorm(), b = d.dot(c_c),
+                   cc = c_c.squaredNorm() - s.radius * s.radius;
       const double disc = b * b - a * cc;
       if (disc > 0.0) {
         s.depth.data[p] = static_cast<float>((b - std::sqrt(disc)) / a);
@@ -126,8 +128,8 @@ TEST(PixelLabels, OverlappingClaimsGoToTheHigherScore) {
   a.score = 0.6f;
   b.score = 0.9f;
   for (const bool swap : {false, true}) {
-    const std::vector<LabelledObject> objects = swap ? std::vector<LabelledObject>{b, a}
-                                                     : std::vector<LabelledObject>{a, b};
+    const std::vector<LabelledObject> objects =
+        swap ? std::vector<LabelledObject>{b, a} : std::vector<LabelledObject>{a, b};
     const LabelImage labels = labels_from_objects(s.depth, s.camera, s.T_wc, objects);
     for (int v = 0; v < 60; ++v) {
       for (int u = 0; u < 80; ++u) {

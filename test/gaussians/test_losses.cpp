@@ -78,7 +78,8 @@ TEST(Losses, L1RgbValueAndGradient) {
 
   double num = 0.0, den = 0.0;
   for (size_t p = 0; p < wt.size(); ++p) {
-    for (int c = 0; c < 3; ++c) num += wt[p] * std::abs(out.rgb[3 * p + c] - target.data[3 * p + c]);
+    for (int c = 0; c < 3; ++c)
+      num += wt[p] * std::abs(out.rgb[3 * p + c] - target.data[3 * p + c]);
     den += 3.0 * wt[p];
   }
   OutputGradients g;
@@ -155,8 +156,7 @@ TEST(Losses, InsAgainstObjectMask) {
   EXPECT_NEAR(loss, num / mask.data.size(), 1e-6);
   check_gradient(
       out, &RenderOutput::ins, g.ins,
-      [&](const RenderOutput& o) { return 0.3 * ins_loss(o, mask, {}, 1.0, nullptr); }, 1e-3,
-      1e-3);
+      [&](const RenderOutput& o) { return 0.3 * ins_loss(o, mask, {}, 1.0, nullptr); }, 1e-3, 1e-3);
   // Zero weights everywhere: no loss and no gradient.
   OutputGradients none;
   EXPECT_EQ(ins_loss(out, mask, PixelWeights(mask.data.size(), 0.f), 1.0, &none), 0.0);
@@ -202,7 +202,8 @@ TEST(Losses, SsimValueAndGradient) {
   RenderOutput out = random_output(w, h, &rng);
   const ImageF target = random_image(w, h, 3, &rng);
   // Correlate the render with the target a little, as a real render is.
-  for (size_t k = 0; k < out.rgb.size(); ++k) out.rgb[k] = 0.5f * out.rgb[k] + 0.5f * target.data[k];
+  for (size_t k = 0; k < out.rgb.size(); ++k)
+    out.rgb[k] = 0.5f * out.rgb[k] + 0.5f * target.data[k];
   const PixelWeights wt = random_weights(w, h, &rng);
 
   OutputGradients g;

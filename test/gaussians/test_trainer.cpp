@@ -68,9 +68,9 @@ TEST(Trainer, TinyKeyframesReachQualityAndIds) {
     const double p = psnr(out, tiny_frame(f).rgb);
     const double ids = id_agreement(out, tiny_frame(f).instance);
     const double dl1 = depth_l1(out, tiny_frame(f).depth);
-    EXPECT_GT(p, 26.0) << "frame " << f;
+    EXPECT_GT(p, 27.0) << "frame " << f;  // ~30 dB measured
     EXPECT_GE(ids, 0.9) << "frame " << f;
-    EXPECT_LT(dl1, 0.03) << "frame " << f;
+    EXPECT_LT(dl1, 0.02) << "frame " << f;  // ~0.8 cm measured
   }
   // Every object of the scene has Gaussians, with its ID.
   for (uint32_t id = 1; id <= 5; ++id) EXPECT_GT(trainer.map().indices_of(id).size(), 20u) << id;
@@ -215,12 +215,14 @@ TEST(Trainer, IdsFollowTheLabels) {
   GaussianMap map = trainer.map();
   map.relabel(1, 0);
   trainer.set_map(map);
+  // The book's pixels now miss their object (ins = 0): new Gaussians of ID 1 are added on a
+  // sample of them; the old ones have one keyframe of evidence, not yet enough.
   const KeyframeReport r1 = trainer.add_keyframe(keyframe_of(0));
-  EXPECT_LT(trainer.map().indices_of(1).size(), book / 2);  // one keyframe of evidence: not yet
+  EXPECT_LT(r1.relabelled, book / 10);
   const KeyframeReport r2 = trainer.add_keyframe(keyframe_of(0));
   EXPECT_GT(r2.relabelled, book * 8 / 10);
-  EXPECT_GT(trainer.map().indices_of(1).size(), book * 8 / 10);
-  EXPECT_LT(r1.relabelled + r2.relabelled, book * 3 / 2);  // hardly any other Gaussian moved
+  EXPECT_LT(r2.relabelled, book * 3 / 2);  // hardly any other Gaussian moved
+  EXPECT_GT(trainer.map().indices_of(1).size(), book);
 }
 
 TEST(Trainer, RejectsImagesOfAnotherSize) {

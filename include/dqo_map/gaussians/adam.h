@@ -29,7 +29,7 @@ class GaussianAdam {
     float lr_opacity = 0.f;
     float beta1 = 0.9f;
     float beta2 = 0.999f;
-    float epsilon = 1e-15f;  // as in 3DGS: gradients are small, a larger ε would damp them
+    float epsilon = 1e-15f;          // as in 3DGS: gradients are small, a larger ε would damp them
     bool normalise_rotation = true;  // keep quaternions unit after a step (rendering is unchanged)
     bool clamp_colour = true;        // keep colours in [0, 1]
   };

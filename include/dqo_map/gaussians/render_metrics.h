@@ -13,7 +13,8 @@ namespace dqo::gs {
 
 // 10 log10(1 / MSE) over all pixels and channels, colours in [0, 1]. `mask` (width·height, non-zero
 // = counted) may be empty. Returns +inf for a perfect match, NaN when no pixel counts.
-double psnr(const RenderOutput& out, const ImageRgb8& target, const std::vector<uint8_t>& mask = {});
+double psnr(const RenderOutput& out, const ImageRgb8& target,
+            const std::vector<uint8_t>& mask = {});
 
 // Mean |d̂ − d| in metres over the pixels with a valid measurement (finite, > 0) and non-zero mask.
 double depth_l1(const RenderOutput& out, const DepthImage& target,

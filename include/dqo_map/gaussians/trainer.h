@@ -50,7 +50,7 @@ struct KeyframeReport {
   size_t added_missing = 0;  // on the missing region
   size_t added_error = 0;    // on sampled error pixels
   size_t became_stable = 0;
-  size_t relabelled = 0;     // Gaussians whose ID followed the labels (relabel_fraction)
+  size_t relabelled = 0;  // Gaussians whose ID followed the labels (relabel_fraction)
   size_t pruned_stale = 0, pruned_oversized = 0, pruned_invisible = 0;
   size_t num_gaussians = 0, num_unstable = 0;
   size_t missing_pixels = 0, error_pixels = 0;
@@ -69,24 +69,24 @@ class GaussianTrainer {
     float ins_threshold = 0.5f;          // θ_α, on the pixels labelled with the object
 
     // New Gaussians.
-    int missing_stride = 2;             // missing pixels on this grid become Gaussians
-    float error_sample_rate = 0.2f;     // fraction of error pixels that do (released code: 5 %;
-                                        // 20 % gave +0.4 dB on `tabletop`)
-    float min_depth = 0.3f;             // metres: pixels outside the range add nothing
+    int missing_stride = 2;          // missing pixels on this grid become Gaussians
+    float error_sample_rate = 0.2f;  // fraction of error pixels that do (released code: 5 %;
+                                     // 20 % gave +0.4 dB on `tabletop`)
+    float min_depth = 0.3f;          // metres: pixels outside the range add nothing
     float max_depth = 5.0f;
-    float scale_factor = 0.5f;          // in-plane σ = factor · stride · depth / f
-    float flatness = 0.1f;              // σ along the normal = flatness · in-plane σ
-    float max_stretch = 3.f;            // in-plane σ along the slope grows by 1/cos(view angle),
-                                        // up to this factor
-    int normal_radius_px = 2;           // neighbours at ± this many pixels give the normal
+    float scale_factor = 0.5f;  // in-plane σ = factor · stride · depth / f
+    float flatness = 0.1f;      // σ along the normal = flatness · in-plane σ
+    float max_stretch = 3.f;    // in-plane σ along the slope grows by 1/cos(view angle),
+                                // up to this factor
+    int normal_radius_px = 2;   // neighbours at ± this many pixels give the normal
     // RTG-SLAM adds transparent Gaussians (TG) where only the colour is wrong; off: all opaque.
     bool transparent_for_colour_error = false;
 
     // Optimisation.
-    int iterations = 50;     // per keyframe
+    int iterations = 50;  // per keyframe
     // Recent keyframes trained jointly, and all that is stored (memory: window · W · H · 20 bytes).
-    // RTG-SLAM trains 3 at a time; with Gaussians kept trainable (below), the older views must stay
-    // in the window or training on new views spoils them: on `tabletop` 30 beat 8 by 2 dB, 8 beat 3.
+    // RTG-SLAM trains 3 at a time; with Gaussians kept trainable (below), older views must stay
+    // in the window or training on new views spoils them (`tabletop`: 30 beat 8 by 2 dB).
     int window = 30;
     // Share of the iterations spent on the newest keyframe (its new Gaussians need them most); the
     // rest go to the others of the window, uniformly. <= 0: uniform over the whole window.
@@ -115,8 +115,8 @@ class GaussianTrainer {
     // on `tabletop` (30 keyframes) 100 gave 24.9 dB, 500 26.7 dB, never 27.9 dB (same settings
     // otherwise), and the age rule then deletes whatever did not freeze in time. So both are off
     // by default; the rasteriser computes every gradient anyway, freezing saves no time here.
-    float stable_confidence = 0.f;  // confidence (steps) at which a Gaussian freezes; 0: never
-    int max_unstable_age = 0;       // keyframes; older unstable ones are removed; 0: never
+    float stable_confidence = 0.f;    // confidence (steps) at which a Gaussian freezes; 0: never
+    int max_unstable_age = 0;         // keyframes; older unstable ones are removed; 0: never
     float max_scale = 0.5f;           // metres; any σ beyond this removes the Gaussian
     int max_invisible_keyframes = 5;  // in view (centre in the image, not behind the measured
                                       // surface) with contribution < min_contribution this many
@@ -178,8 +178,7 @@ class GaussianTrainer {
   };
 
   RenderSettings settings(uint32_t ins_object) const;
-  void review_gaussians(const StoredKeyframe& kf, const RenderOutput& out,
-                        const RenderState& state);
+  void review_gaussians(const StoredKeyframe& kf, const RenderState& state);
   void relabel_gaussians(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id);
   // out: the render from the keyframe; null when the map is empty (everything is missing).
   void add_gaussians(const StoredKeyframe& kf, const RenderOutput* out, KeyframeReport* report);
