@@ -265,13 +265,13 @@ void Tracker::Impl::apply_ba_result(const LocalBaResult& result) {
   for (const auto& [id, p_w] : result.points)
     if (MapPoint* p = map_.map_point(id)) p->p_w = p_w;
   for (const auto& [kf, point] : result.outliers) map_.erase_observation(point, kf);
-  // The last frame keeps its pose. Moving it with the map looks right but measured worse
-  // (tabletop: ATE 0.17 cm kept, 0.3-0.8 cm moved): the next frame's dense prior is relative to
-  // it and is the more precise of the two, and the features pull the pose onto the adjusted
-  // points anyway (or, past max_prior_chi2, take over). Only its anchor is refreshed.
+  // The last frame follows its reference keyframe (ORB-SLAM2), so the next frame's motion model
+  // and dense prior start from where the adjusted map says it was. This only helps because the
+  // adjustment keeps the dense odometry between keyframes (OdometryCost): without it the
+  // features alone moved keyframes by millimetres of noise and the trajectory got worse.
   if (last_) {
-    if (const KeyFrame* ref = map_.keyframe(last_->reference_keyframe))
-      last_->T_ref_frame = ref->T_wc.inverse() * last_->T_wc;
+    const auto it = moved.find(last_->reference_keyframe);
+    if (it != moved.end()) last_->T_wc = it->second * last_->T_ref_frame;
   }
   // Registered frames follow their reference keyframes.
   std::lock_guard<std::mutex> lock(registry_mutex_);

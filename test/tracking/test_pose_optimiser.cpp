@@ -92,6 +92,39 @@ TEST(Residuals, JacobiansMatchNumericDifferences) {
   }
 }
 
+TEST(Residuals, OdometryJacobiansMatchAndVanishAtTheMeasurement) {
+  std::mt19937 rng(7);
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Random();
+  const Eigen::Matrix<double, 6, 6> information = A * A.transpose() * 100.0;
+  for (int trial = 0; trial < 5; ++trial) {
+    const SE3 T_wa = random_pose(&rng, 0.5, 0.5), T_wb = random_pose(&rng, 0.5, 0.5);
+    const SE3 T_ab = T_wa.inverse() * T_wb;
+    std::unique_ptr<ceres::CostFunction> cost(
+        OdometryCost::Create(T_ab * random_pose(&rng, 0.01, 0.01), sqrt_information(information)));
+    ceres::EigenQuaternionManifold quaternion;
+    std::vector<const ceres::Manifold*> manifolds = {&quaternion, nullptr, &quaternion, nullptr};
+    ceres::GradientChecker checker(cost.get(), &manifolds, ceres::NumericDiffOptions{});
+    const SE3 T_aw = T_wa.inverse(), T_bw = T_wb.inverse();
+    Eigen::Quaterniond qa = T_aw.quaternion(), qb = T_bw.quaternion();
+    Eigen::Vector3d ta = T_aw.translation(), tb = T_bw.translation();
+    const double* parameters[4] = {qa.coeffs().data(), ta.data(), qb.coeffs().data(), tb.data()};
+    ceres::GradientChecker::ProbeResults results;
+    checker.Probe(parameters, 1e-6, &results);
+    ASSERT_TRUE(results.return_value);
+    for (size_t b = 0; b < 4; ++b) {
+      const double scale = std::max(1.0, results.local_jacobians[b].cwiseAbs().maxCoeff());
+      EXPECT_LT((results.local_jacobians[b] - results.local_numeric_jacobians[b]).cwiseAbs().maxCoeff(),
+                1e-6 * scale);
+    }
+    // Zero residual when the poses agree with the measurement.
+    std::unique_ptr<ceres::CostFunction> exact(
+        OdometryCost::Create(T_ab, sqrt_information(information)));
+    Vector6d r;
+    exact->Evaluate(parameters, r.data(), nullptr);
+    EXPECT_LT(r.norm(), 1e-6);
+  }
+}
+
 TEST(Residuals, DensePriorIsTheRightPerturbationMahalanobis) {
   // At T_wc = T̂_wc exp(δ) the prior's squared residual is δᵀΛδ (to first order).
   std::mt19937 rng(5);
