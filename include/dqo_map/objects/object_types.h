@@ -1,0 +1,99 @@
+#pragma once
+// The value types of the object stage (METHOD.md §2–3, DESIGN.md association_node): what goes in
+// per keyframe, what an object of the map holds, and what comes out. They mirror the messages
+// (KeyFrame + DetectionArray in; Object, ObjectEvent, KeyFrameObjects out) without depending on ROS.
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+#include "dqo_map/common/dataset.h"
+#include "dqo_map/geometry/box2d.h"
+#include "dqo_map/geometry/dual_quadric.h"
+#include "dqo_map/geometry/pinhole_camera.h"
+#include "dqo_map/geometry/quadric_init.h"
+#include "dqo_map/geometry/se3.h"
+
+namespace dqo::objects {
+
+using ObjectId = uint64_t;      // 0 = none; never reused, also across restarts (state file)
+using KeyFrameId = uint64_t;
+
+// One keyframe as the object stage needs it. Detections are already in the rectified (pinhole)
+// image: a node maps raw detector boxes through the undistortion before building this.
+struct ObjectKeyFrame {
+  KeyFrameId id = 0;
+  double stamp = 0.0;           // seconds
+  PinholeCamera camera;         // rectified pinhole camera; width/height give the image size
+  SE3 T_wc;                     // camera (optical) to world/map
+  DepthView depth;              // optional (data == nullptr): enables the single-view fallback
+  std::vector<Detection2d> detections;
+};
+
+// One detection that was associated with an object.
+struct ObjectObservation {
+  KeyFrameId keyframe_id = 0;
+  Box2d box;                    // rectified image, pixels
+  int class_id = 0;
+  float score = 0.0f;
+};
+
+enum class ObjectState {
+  kCandidate,   // seen, not yet confirmed (has its final ID already)
+  kConfirmed,
+};
+
+struct MapObject {
+  ObjectId id = 0;
+  ObjectState state = ObjectState::kCandidate;
+  DualQuadric quadric;
+  bool has_quadric = false;     // false only for a candidate whose first view gave no ellipsoid
+  bool from_boxes = false;      // initialised from box planes (≥ 3 views), not from one depth view
+  int class_id = 0;             // winner of the class vote
+  std::string class_name;
+  double confidence = 0.0;      // share of the (score-weighted) class vote won by class_id
+  std::map<int, double> class_votes;           // class ID -> summed detection score
+  std::vector<ObjectObservation> observations; // oldest first, at most one per keyframe
+  int missed = 0;               // consecutive keyframes where it should be seen and was not detected
+  KeyFrameId first_keyframe = 0;
+  KeyFrameId last_keyframe = 0; // last keyframe with an observation
+};
+
+struct ObjectEvent {
+  enum class Type { kCreated, kMerged, kRemoved };
+  Type type = Type::kCreated;
+  ObjectId id = 0;
+  ObjectId into_id = 0;         // kMerged only: id was merged into into_id
+};
+
+// Why a detection of a keyframe did not become (part of) an object.
+enum class DetectionVerdict {
+  kAssociated,      // matched an existing object
+  kNewObject,       // started a new object (candidate)
+  kInvalid,         // NaN, negative or zero size
+  kLowScore,
+  kTooSmall,
+  kTooLarge,
+  kAtBorder,
+  kDuplicate,       // overlaps a better detection of the frame
+  kNoInit,          // would start an object but no ellipsoid could be initialised
+  kOverLimit,       // beyond max_detections_per_keyframe
+};
+const char* to_string(DetectionVerdict verdict);
+
+// The result of one keyframe, parallel to its input detections.
+struct KeyFrameAssociation {
+  KeyFrameId keyframe_id = 0;
+  std::vector<DetectionVerdict> verdicts;      // [input detection]
+  std::vector<ObjectId> object_ids;            // [input detection]; 0 = rejected
+  // The detections that passed the filter (what KeyFrameObjects publishes), in input order, with
+  // the index of each in the input and the object it became (0 when none).
+  std::vector<Detection2d> filtered;
+  std::vector<int> filtered_source;            // [filtered] -> input index
+  std::vector<ObjectId> filtered_object_ids;   // [filtered]
+  std::vector<ObjectEvent> events;             // in the order they happened
+  double association_ms = 0.0;                 // filter + visibility + association + merge + init
+  double refinement_ms = 0.0;                  // IoU refinement of the objects seen
+  int refined_objects = 0;
+};
+
+}  // namespace dqo::objects
