@@ -52,7 +52,10 @@ endif()
 if(DQO_HAVE_OPENCV AND DQO_HAVE_CERES)
   list(APPEND DQO_EXPORTED_LIBRARIES dqo_tracking)
 endif()
-list(APPEND DQO_EXPORTED_LIBRARIES dqo_eval)
+if(DQO_HAVE_CERES AND DQO_HAVE_YAML)
+  list(APPEND DQO_EXPORTED_LIBRARIES dqo_objects)
+endif()
+list(APPEND DQO_EXPORTED_LIBRARIES dqo_eval dqo_gaussians)
 # Static libraries: dependents must come before their dependencies on the link line.
 list(REVERSE DQO_EXPORTED_LIBRARIES)
 catkin_package(
