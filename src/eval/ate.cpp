@@ -1,5 +1,7 @@
 #include "dqo_map/eval/ate.h"
 
+#include "dqo_map/common/tum_trajectory.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -8,43 +10,6 @@
 #include <Eigen/Geometry>
 
 namespace dqo::eval {
-namespace {
-
-// Pairs (i, j) with |a[i] - b[j]| <= max_difference, each index used once, chosen greedily by
-// increasing difference as TUM's associate.py does; sorted by i. Candidates come from a sorted
-// copy of b, so long trajectories cost N log N, not N * M.
-//
-// io/trajectory_io.h has the same rule (associate_timestamps) for image streams, but eval/ is
-// Eigen-only and may not link io/ (OpenCV, Open3D). Were it moved to common/, use that instead.
-std::vector<std::pair<int, int>> associate(const std::vector<double>& a, const std::vector<double>& b,
-                                           double max_difference) {
-  std::vector<int> order(b.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int x, int y) { return b[x] < b[y]; });
-  std::vector<double> sorted(b.size());
-  for (size_t k = 0; k < order.size(); ++k) sorted[k] = b[order[k]];
-
-  std::vector<std::tuple<double, int, int>> candidates;
-  for (int i = 0; i < static_cast<int>(a.size()); ++i) {
-    auto it = std::lower_bound(sorted.begin(), sorted.end(), a[i] - max_difference);
-    for (; it != sorted.end() && *it <= a[i] + max_difference; ++it) {
-      const int j = order[static_cast<size_t>(it - sorted.begin())];
-      candidates.emplace_back(std::abs(a[i] - b[j]), i, j);
-    }
-  }
-  std::sort(candidates.begin(), candidates.end());
-  std::vector<char> used_a(a.size(), 0), used_b(b.size(), 0);
-  std::vector<std::pair<int, int>> pairs;
-  for (const auto& [d, i, j] : candidates) {
-    if (used_a[i] || used_b[j]) continue;
-    used_a[i] = used_b[j] = 1;
-    pairs.emplace_back(i, j);
-  }
-  std::sort(pairs.begin(), pairs.end());
-  return pairs;
-}
-
-}  // namespace
 
 std::optional<AteResult> compute_ate(const std::vector<StampedPose>& estimate,
                                      const std::vector<StampedPose>& ground_truth,
@@ -54,7 +19,7 @@ std::optional<AteResult> compute_ate(const std::vector<StampedPose>& estimate,
   t_gt.reserve(ground_truth.size());
   for (const auto& p : estimate) t_est.push_back(p.first);
   for (const auto& p : ground_truth) t_gt.push_back(p.first);
-  const auto pairs = associate(t_est, t_gt, params.max_time_difference);
+  const auto pairs = associate_timestamps(t_est, t_gt, params.max_time_difference);
   if (pairs.size() < 3) {
     if (error) {
       *error = std::to_string(pairs.size()) + " of " + std::to_string(estimate.size()) +

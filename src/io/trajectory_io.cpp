@@ -6,36 +6,6 @@
 
 namespace dqo {
 
-std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>& a,
-                                                      const std::vector<double>& b,
-                                                      double max_difference) {
-  // Candidates within the window, found through b sorted by time.
-  std::vector<int> b_order(b.size());
-  for (size_t j = 0; j < b.size(); ++j) b_order[j] = static_cast<int>(j);
-  std::sort(b_order.begin(), b_order.end(), [&](int x, int y) { return b[x] < b[y]; });
-  std::vector<double> b_sorted(b.size());
-  for (size_t k = 0; k < b.size(); ++k) b_sorted[k] = b[b_order[k]];
-
-  std::vector<std::tuple<double, int, int>> candidates;  // (|difference|, i, j)
-  for (size_t i = 0; i < a.size(); ++i) {
-    auto it = std::lower_bound(b_sorted.begin(), b_sorted.end(), a[i] - max_difference);
-    for (; it != b_sorted.end() && *it <= a[i] + max_difference; ++it) {
-      const int j = b_order[it - b_sorted.begin()];
-      candidates.emplace_back(std::abs(a[i] - b[j]), static_cast<int>(i), j);
-    }
-  }
-  std::sort(candidates.begin(), candidates.end());
-  std::vector<bool> used_a(a.size(), false), used_b(b.size(), false);
-  std::vector<std::pair<int, int>> matches;
-  for (const auto& [diff, i, j] : candidates) {
-    if (diff > max_difference || used_a[i] || used_b[j]) continue;
-    used_a[i] = used_b[j] = true;
-    matches.emplace_back(i, j);
-  }
-  std::sort(matches.begin(), matches.end());
-  return matches;
-}
-
 std::optional<SE3> pose_at(const Trajectory& trajectory, double t,
                            const PoseLookupParams& params) {
   if (trajectory.empty()) return std::nullopt;

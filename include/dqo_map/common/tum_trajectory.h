@@ -27,4 +27,11 @@ bool write_tum_trajectory(const std::string& path, const Trajectory& poses,
 std::optional<Trajectory> read_tum_trajectory(const std::string& path,
                                               std::string* error = nullptr);
 
+// Pairs (i, j) of a[i] and b[j] with |a[i] - b[j]| <= max_difference, each index used at most
+// once, chosen greedily by increasing difference (as TUM's associate.py does); sorted by i. Used for
+// image streams against each other, images against ground truth and estimates against ground truth.
+std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>& a,
+                                                      const std::vector<double>& b,
+                                                      double max_difference);
+
 }  // namespace dqo

@@ -1,7 +1,6 @@
 #pragma once
-// The timestamp matching that TUM RGB-D data needs (image streams against each other, images
-// against ground truth, estimates against ground truth). The TUM trajectory file format itself
-// (Trajectory, read_tum_trajectory, write_tum_trajectory) is in common/tum_trajectory.h.
+// Poses of a trajectory at image timestamps (interpolated). The TUM trajectory file format and the
+// timestamp association (read_tum_trajectory, associate_timestamps) are in common/tum_trajectory.h.
 
 #include <optional>
 #include <utility>
@@ -11,12 +10,6 @@
 #include "dqo_map/geometry/se3.h"
 
 namespace dqo {
-
-// Pairs (i, j) of a[i] and b[j] with |a[i] - b[j]| <= max_difference, each index used at most
-// once, chosen greedily by increasing difference (as TUM's associate.py does); sorted by i.
-std::vector<std::pair<int, int>> associate_timestamps(const std::vector<double>& a,
-                                                      const std::vector<double>& b,
-                                                      double max_difference);
 
 struct PoseLookupParams {
   // Interpolate between the two poses around t (translation linearly, rotation by slerp) when
