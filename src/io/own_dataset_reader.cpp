@@ -3,13 +3,11 @@
 #include <filesystem>
 #include <limits>
 #include <map>
-#include <set>
 #include <system_error>
-
-#include <Eigen/Geometry>
 
 #include "camera_yaml.h"
 #include "dataset_reader_util.h"
+#include "dqo_map/common/object_list.h"
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/io/image_io.h"
 #include "dqo_map/io/mesh_io.h"
@@ -159,39 +157,24 @@ class OwnDatasetReader : public io_detail::BasicDatasetReader {
     return true;
   }
 
+  // objects_gt.txt is an object list file (common/object_list.h) with box half extents in place of
+  // semi-axes; one parser for both.
   bool read_objects(const std::string& path, bool load_meshes, std::string* error) {
-    std::vector<TextLine> lines;
-    if (!lines_if_present(path, &lines, error)) return false;
-    std::set<uint32_t> ids;
-    for (const TextLine& line : lines) {
-      const LineFields f(path, line, error);
-      long long id = 0, class_id = 0;
-      double v[10];
-      static const char* kNames[10] = {"cx", "cy", "cz", "qx", "qy",
-                                       "qz", "qw", "hx", "hy", "hz"};
-      if (!f.count(12, 12, "id class_id cx cy cz qx qy qz qw hx hy hz") ||
-          !f.integer(0, "id", 1, kMaxId, &id) ||
-          !f.integer(1, "class_id", -kMaxClass, kMaxClass, &class_id)) {
-        return false;
-      }
-      for (int k = 0; k < 10; ++k) {
-        if (!f.number(2 + k, kNames[k], &v[k])) return false;
-      }
-      const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
-      if (q.norm() < 1e-6) return f.error("quaternion has (near) zero norm");
-      if (v[7] < 0.0 || v[8] < 0.0 || v[9] < 0.0) return f.error("negative half extent");
-      if (!ids.insert(static_cast<uint32_t>(id)).second) {
-        return f.error("object " + std::to_string(id) + " listed twice");
+    std::error_code ec;
+    if (!fs::exists(path, ec)) return true;
+    const auto entries = read_object_list(path, error);
+    if (!entries) return false;
+    for (const ObjectListEntry& e : *entries) {
+      if (e.id > static_cast<uint64_t>(kMaxId)) {
+        return fail(error, path + ": object ID " + std::to_string(e.id) +
+                               " out of range (ground-truth IDs are 32-bit)");
       }
       GtObject o;
-      o.id = static_cast<uint32_t>(id);
-      o.class_id = static_cast<int>(class_id);
+      o.id = static_cast<uint32_t>(e.id);
+      o.class_id = e.class_id;
       o.class_name = class_name(o.class_id);
-      o.box.centre = Eigen::Vector3d(v[0], v[1], v[2]);
-      o.box.rotation = q.normalized().toRotationMatrix();
-      o.box.half_extents = Eigen::Vector3d(v[7], v[8], v[9]);
+      o.box = to_oriented_box(e);
       const std::string mesh_path = dir_ + "/meshes_gt/" + std::to_string(o.id) + ".ply";
-      std::error_code ec;
       if (load_meshes && fs::exists(mesh_path, ec)) {
         auto mesh = load_mesh(mesh_path, error);
         if (!mesh) return false;

@@ -21,15 +21,7 @@ using dqo::PinholeCamera;
 using dqo::SE3;
 using namespace dqo::tracking;
 
-PinholeCamera test_camera() {
-  PinholeCamera c;
-  c.fx = c.fy = 525.0;
-  c.cx = 319.5;
-  c.cy = 239.5;
-  c.width = 640;
-  c.height = 480;
-  return c;
-}
+PinholeCamera test_camera() { return PinholeCamera{525.0, 525.0, 319.5, 239.5, 640, 480}; }
 
 // Blurred noise at two scales: corners everywhere, at every pyramid level.
 cv::Mat textured_image(unsigned seed) {

@@ -14,15 +14,7 @@ using dqo::SE3;
 using dqo::Vector6d;
 using namespace dqo::tracking;
 
-PinholeCamera test_camera() {
-  PinholeCamera c;
-  c.fx = c.fy = 525.0;
-  c.cx = 319.5;
-  c.cy = 239.5;
-  c.width = 640;
-  c.height = 480;
-  return c;
-}
+PinholeCamera test_camera() { return PinholeCamera{525.0, 525.0, 319.5, 239.5, 640, 480}; }
 
 struct Window {
   LocalBaProblem truth;

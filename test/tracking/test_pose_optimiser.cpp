@@ -17,16 +17,7 @@ using dqo::SE3;
 using dqo::Vector6d;
 using namespace dqo::tracking;
 
-PinholeCamera test_camera() {
-  PinholeCamera c;
-  c.fx = 525.0;
-  c.fy = 520.0;
-  c.cx = 319.5;
-  c.cy = 239.5;
-  c.width = 640;
-  c.height = 480;
-  return c;
-}
+PinholeCamera test_camera() { return PinholeCamera{525.0, 520.0, 319.5, 239.5, 640, 480}; }
 
 SE3 random_pose(std::mt19937* rng, double t_scale, double angle) {
   std::normal_distribution<double> n(0.0, 1.0);
