@@ -1,6 +1,7 @@
 #pragma once
 // Parameters of the RGB-D tracker, one struct per stage, loaded once (from the node's YAML or the
 // CLI's --config). Defaults are the shipped configuration (config/tracking.yaml mirrors them).
+#include <array>
 
 namespace dqo::tracking {
 
@@ -18,7 +19,7 @@ struct OrbParams {
 struct DenseParams {
   int pyramid_levels = 4;            // level 0 = the input size; each level halves it (at most 4)
   int finest_level = 1;              // skip the full resolution for speed (0 = use it)
-  int iterations[4] = {4, 6, 8, 10}; // Gauss-Newton iterations per level, finest first
+  std::array<int, 4> iterations = {4, 6, 8, 10};  // Gauss-Newton iterations per level, finest first
   double max_depth = 6.0;
   double max_point_distance = 0.1;   // metres, finest level (doubling per level above): farther
                                      // correspondences are outliers
