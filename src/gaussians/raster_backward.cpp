@@ -50,7 +50,9 @@ template <typename S>
 struct TileBackward {
   PixelAccumBack<S> back[kTilePixels];
   Vec3<S> v_rgb[kTilePixels];
-  S v_depth[kTilePixels];  // of the raw Σ T α z
+  S v_depth[kTilePixels];    // of the raw Σ T α z
+  S v_surface[kTilePixels];  // of the surface depth (settings.surface_depth)
+  SurfaceBack<S> surface_back[kTilePixels];
   S v_alpha[kTilePixels];  // of the accumulated alpha 1 − T_N
   S v_ins[kTilePixels];
   S t_final[kTilePixels];
@@ -83,7 +85,15 @@ void backward_tile(const RenderSettings& settings, const CpuRenderState<S>& stat
                                   : Vec3<S>{S(0), S(0), S(0)};
       S v_depth = grad_out.depth ? grad_out.depth[pix] : S(0);
       S v_alpha = grad_out.alpha ? grad_out.alpha[pix] : S(0);
-      if (settings.normalise_depth) {
+      tb->v_surface[p] = S(0);
+      if (settings.surface_depth) {
+        // The output depth is the surface's alone: the raw Σ T α z gets no gradient.
+        if (state.surface[pix].weight > S(0)) {
+          tb->v_surface[p] = v_depth;
+          tb->surface_back[p] = surface_back_start(state.surface[pix]);
+        }
+        v_depth = S(0);
+      } else if (settings.normalise_depth) {
         // d = D / A: dD = g / A, dA = −g D / A².
         const S accumulated = S(1) - t_final;
         if (accumulated > S(kNormaliseMinAlpha)) {
@@ -133,6 +143,13 @@ void backward_tile(const RenderSettings& settings, const CpuRenderState<S>& stat
                                        tb->v_depth[p], tb->v_alpha[p], &tb->back[p], &acc.colour,
                                        &acc.depth);
         if (s.counts_for_ins) v_alpha += tb->v_ins[p];
+        if (tb->v_surface[p] != S(0)) {
+          const SurfaceAccum<S>& sa = state.surface[static_cast<size_t>(y) * width + tx0 + c];
+          const uint32_t position = pos + 1;
+          if (position >= sa.first && position <= sa.last)
+            v_alpha += surface_step_vjp(alpha, s.depth, surface_depth(sa), sa.weight,
+                                        tb->v_surface[p], &tb->surface_back[p], &acc.depth);
+        }
         evaluate_alpha_vjp(s.conic, s.mean2d, s.opacity, px, py, vis, v_alpha, &acc.conic,
                            &acc.mean2d, &acc.opacity);
         touched = true;

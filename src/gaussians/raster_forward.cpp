@@ -20,6 +20,7 @@ struct TileForward {
   S best_weight[kTilePixels];
   uint32_t best_id[kTilePixels];
   uint32_t n_contrib[kTilePixels];
+  SurfaceAccum<S> surface[kTilePixels];
 };
 
 template <typename S>
@@ -39,7 +40,10 @@ void composite_tile(const RenderSettings& settings, size_t tile, const ImageBuff
     tf->best_weight[p] = S(0);
     tf->best_id[p] = 0;
     tf->n_contrib[p] = 0;
+    tf->surface[p] = surface_accum_start<S>();
   }
+  const bool surface = settings.surface_depth;
+  const S gap_abs = S(settings.surface_gap), gap_rel = S(settings.surface_gap_relative);
   uint32_t open[kTileSize];  // pixels not finished by the early stop
   for (int r = 0; r < kTileSize; ++r) open[r] = ty0 + r <= ty1 ? (2u << (tx1 - tx0)) - 1u : 0u;
   int n_open = (tx1 - tx0 + 1) * (ty1 - ty0 + 1);
@@ -65,6 +69,9 @@ void composite_tile(const RenderSettings& settings, size_t tile, const ImageBuff
           --n_open;
           continue;
         }
+        if (surface)
+          surface_step(alpha, s.depth, tf->acc[p].transmittance, gap_abs, gap_rel, position,
+                       &tf->surface[p]);
         if (s.counts_for_ins) tf->ins[p] += alpha;
         if (weight > tf->best_weight[p]) {
           tf->best_weight[p] = weight;
@@ -87,7 +94,9 @@ void composite_tile(const RenderSettings& settings, size_t tile, const ImageBuff
       out.rgb[3 * pix + 2] = a.rgb.z + t * bg[2];
       const S accumulated = S(1) - t;
       out.alpha[pix] = accumulated;
-      if (settings.normalise_depth)
+      if (surface)
+        out.depth[pix] = surface_depth(tf->surface[p]);
+      else if (settings.normalise_depth)
         out.depth[pix] = accumulated > S(kNormaliseMinAlpha) ? a.depth / accumulated : S(0);
       else
         out.depth[pix] = a.depth;
@@ -96,6 +105,7 @@ void composite_tile(const RenderSettings& settings, size_t tile, const ImageBuff
       state->t_final[pix] = t;
       state->n_contrib[pix] = tf->n_contrib[p];
       state->depth_raw[pix] = a.depth;
+      if (surface) state->surface[pix] = tf->surface[p];
     }
   }
 }
@@ -109,6 +119,7 @@ void composite_forward(const RenderSettings& settings, int threads, const ImageB
   state->t_final.resize(pixels);
   state->n_contrib.resize(pixels);
   state->depth_raw.resize(pixels);
+  if (settings.surface_depth) state->surface.resize(pixels);
   const size_t tiles = static_cast<size_t>(state->bins.tiles_x) * state->bins.tiles_y;
   const int n_threads = std::max(1, std::min<int>(threads, static_cast<int>(tiles)));
   std::vector<TileForward<S>> scratch(n_threads);

@@ -13,6 +13,7 @@
 
 #include "dqo_map/gaussians/detail/cpu_rasteriser.h"
 #include "dqo_map/gaussians/math/alpha.h"
+#include "dqo_map/gaussians/math/composite.h"
 #include "dqo_map/gaussians/math/project_gaussian.h"
 
 namespace dqo::gs::detail {
@@ -67,9 +68,10 @@ class CpuRenderState final : public RenderState {
   int width = 0, height = 0;
   ProjectedSet<S> projected;
   TileBins bins;
-  std::vector<S> t_final;           // [P] transmittance after the last contributor
-  std::vector<uint32_t> n_contrib;  // [P] list position of the last contributor + 1 (0: none)
-  std::vector<S> depth_raw;         // [P] Σ T α z, before any normalisation
+  std::vector<S> t_final;                // [P] transmittance after the last contributor
+  std::vector<uint32_t> n_contrib;       // [P] list position of the last contributor + 1 (0: none)
+  std::vector<S> depth_raw;              // [P] Σ T α z, before any normalisation
+  std::vector<SurfaceAccum<S>> surface;  // [P] with settings.surface_depth only
 };
 
 template <typename S>

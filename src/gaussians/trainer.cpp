@@ -26,16 +26,19 @@ GaussianTrainer::GaussianTrainer(const Params& params, std::unique_ptr<Rasterise
       adam_(params.adam),
       rng_(params.seed) {}
 
-RenderSettings GaussianTrainer::settings(uint32_t ins_object) const {
+RenderSettings GaussianTrainer::settings(uint32_t ins_object, bool for_render) const {
   RenderSettings s;
   s.normalise_depth = params_.normalise_depth;
+  s.surface_depth = params_.surface_depth && for_render;
+  s.surface_gap = params_.surface_gap;
+  s.surface_gap_relative = params_.surface_gap_relative;
   s.ins_object = ins_object;
   return s;
 }
 
 void GaussianTrainer::render(const PinholeCamera& camera, const SE3& T_wc, RenderOutput* out,
                              uint32_t ins_object) {
-  rasteriser_->forward(map_, camera, T_wc.inverse(), settings(ins_object), out, nullptr);
+  rasteriser_->forward(map_, camera, T_wc.inverse(), settings(ins_object, true), out, nullptr);
 }
 
 void GaussianTrainer::sync_state() {
@@ -80,7 +83,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   } else {
     RenderOutput out;
     std::unique_ptr<RenderState> state;
-    rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0), &out, &state);
+    rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0, false), &out, &state);
     review_gaussians(kf, *state);
     add_gaussians(kf, &out, &report);
   }
@@ -154,7 +157,7 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   MapGradients g;
   g.resize_for(map_);
   const SE3 T_cw = kf.T_wc.inverse();
-  rasteriser_->backward(map_, kf.camera, T_cw, settings(0), state, probe, &g);
+  rasteriser_->backward(map_, kf.camera, T_cw, settings(0, false), state, probe, &g);
 
   const Eigen::Matrix3f R = T_cw.rotation().cast<float>();
   const Eigen::Vector3f t = T_cw.translation().cast<float>();
@@ -253,7 +256,7 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
     const SE3 T_cw = kf.T_wc.inverse();
     for (const uint32_t id : kf.objects) {
       RenderOutput ins;
-      rasteriser_->forward(map_, kf.camera, T_cw, settings(id), &ins, nullptr);
+      rasteriser_->forward(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
       for (size_t p = 0; p < n; ++p) {
         if (kf.labels.data[p] == id && !missing[p] && ins.ins[p] < params_.ins_threshold) {
           error[p] = 1;
@@ -361,7 +364,7 @@ double GaussianTrainer::iterate(const StoredKeyframe& kf) {
     object = kf.objects[std::uniform_int_distribution<size_t>(0, kf.objects.size() - 1)(rng_)];
   }
   const SE3 T_cw = kf.T_wc.inverse();
-  const RenderSettings s = settings(object);
+  const RenderSettings s = settings(object, false);
   RenderOutput out;
   std::unique_ptr<RenderState> state;
   rasteriser_->forward(map_, kf.camera, T_cw, s, &out, &state);

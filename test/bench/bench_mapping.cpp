@@ -5,7 +5,11 @@
 // and from the held-out frames half-way between keyframes and prints
 //   PSNR (against the noisy input and against the clean image), depth L1 on valid pixels (against
 //   the noisy input and the clean depth), agreement of the rendered object IDs with the
-//   ground-truth instance image on object pixels, seconds per keyframe, Gaussians, bytes each.
+//   ground-truth instance image on object pixels, seconds per keyframe, Gaussians, bytes each;
+//   and where the depth L1 against the input comes from: pixels at depth edges and the others,
+//   each with the noise floor (the clean depth's L1 against the noisy input, which no map that
+//   does not reproduce the noise can beat).
+// --ppm writes per view the render, the input, the ID agreement and the depth error.
 //
 //   bench_mapping [--scene PATH] [--keyframes N] [--every K] [--iters I] [--width W]
 //                 [--threads T] [--no-noise] [--window W] [--stride S] [--ssim L] [--verbose]
@@ -58,6 +62,8 @@ bool set_param(const std::string& assignment, GaussianTrainer::Params* p) {
          i("iterations", &p->iterations) || i("window", &p->window) ||
          f("lambda_depth", &p->lambda_depth) || f("lambda_ins", &p->lambda_ins) ||
          f("lambda_ssim", &p->lambda_ssim) || b("normalise_depth", &p->normalise_depth) ||
+         b("surface_depth", &p->surface_depth) || f("surface_gap", &p->surface_gap) ||
+         f("surface_gap_relative", &p->surface_gap_relative) ||
          b("train_per_label", &p->train_per_label) || f("lr_position", &p->adam.lr_position) ||
          f("lr_log_scale", &p->adam.lr_log_scale) || f("lr_rotation", &p->adam.lr_rotation) ||
          f("lr_colour", &p->adam.lr_colour) || f("lr_opacity", &p->adam.lr_opacity) ||
@@ -140,12 +146,80 @@ std::vector<uint8_t> observed_mask(const dqo::PinholeCamera& cam, const dqo::Fra
   return mask;
 }
 
+// Depth-edge pixels: the clean depth of some 8-neighbour differs by more than max(5 cm, 3 % of
+// the depth), the sensor model's edge test (sim/noise.h). Where the depth L1 comes from.
+std::vector<uint8_t> depth_edges(const dqo::DepthImage& clean) {
+  const int w = clean.width, h = clean.height;
+  std::vector<uint8_t> edge(clean.data.size(), 0);
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const float d = clean.at(u, v);
+      if (!(d > 0.f)) continue;
+      const float jump = std::max(0.05f, 0.03f * d);
+      for (int dv = -1; dv <= 1; ++dv) {
+        for (int du = -1; du <= 1; ++du) {
+          const int uu = u + du, vv = v + dv;
+          if (uu < 0 || vv < 0 || uu >= w || vv >= h) continue;
+          const float dn = clean.at(uu, vv);
+          if (dn > 0.f && std::abs(dn - d) > jump) edge[static_cast<size_t>(v) * w + u] = 1;
+        }
+      }
+    }
+  }
+  return edge;
+}
+
+// Where the depth L1 against the input comes from, summed over views: per pixel class (edge or
+// not) the error sum and pixel count; on edges, the error of renders nearer than the input
+// (foreground spilling over the background) apart; the floor any map has against the noisy
+// input, L1 between the clean and the noisy depth; and the map's own error, against the clean
+// depth (signed: its bias) on the same pixels.
+struct DepthBreakdown {
+  double edge_sum = 0, edge_near_sum = 0, flat_sum = 0, floor_flat = 0, floor_edge = 0;
+  double flat_clean = 0, flat_bias = 0, edge_clean = 0;
+  double edge_n = 0, valid_n = 0;
+  void add(const RenderOutput& r, const dqo::DepthImage& noisy, const dqo::DepthImage& clean) {
+    const std::vector<uint8_t> edge = depth_edges(clean);
+    for (size_t p = 0; p < noisy.data.size(); ++p) {
+      const float d = noisy.data[p];
+      if (!std::isfinite(d) || d <= 0.f || !(clean.data[p] > 0.f)) continue;
+      const double e = static_cast<double>(r.depth[p]) - d;
+      const double e_clean = static_cast<double>(r.depth[p]) - clean.data[p];
+      const double floor = std::abs(static_cast<double>(clean.data[p]) - d);
+      valid_n += 1;
+      if (edge[p]) {
+        edge_n += 1;
+        edge_sum += std::abs(e);
+        if (e < 0.0) edge_near_sum += -e;
+        floor_edge += floor;
+        edge_clean += std::abs(e_clean);
+      } else {
+        flat_sum += std::abs(e);
+        floor_flat += floor;
+        flat_clean += std::abs(e_clean);
+        flat_bias += e_clean;
+      }
+    }
+  }
+  void print(const char* name) const {
+    if (valid_n == 0) return;
+    const double k = 100.0 / valid_n;  // cm, as a share of the mean over valid pixels
+    std::printf(
+        "%-10s depth L1 = %.3f cm non-edge (floor %.3f, vs clean %.3f, bias %+.3f) + %.3f cm on "
+        "the %.2f %% edge pixels (floor %.3f, vs clean %.3f, too near %.3f)\n",
+        name, k * flat_sum, k * floor_flat, k * flat_clean, k * flat_bias, k * edge_sum,
+        edge_n / valid_n * 100, k * floor_edge, k * edge_clean, k * edge_near_sum);
+  }
+};
+
 struct Metrics {
   double psnr = 0, psnr_clean = 0, depth = 0, depth_clean = 0, ids = 0, psnr_observed = 0,
          unobserved = 0;
   int n = 0, n_ids = 0;
+  DepthBreakdown breakdown;
   void add(const RenderOutput& r, const dqo::Frame& noisy, const dqo::Frame& clean,
            const std::vector<uint8_t>& observed) {
+    breakdown.add(r, noisy.depth, clean.depth);
     size_t seen = 0;
     for (const uint8_t o : observed) seen += o;
     psnr_observed += dqo::gs::psnr(r, noisy.rgb, observed);
@@ -170,6 +244,7 @@ struct Metrics {
         n_ids ? 100 * ids / n_ids : NAN);
     std::printf("%-10s PSNR on surfaces some keyframe saw %6.2f dB (unseen: %.2f %% of pixels)\n",
                 "", psnr_observed / n, 100 * unobserved / n);
+    breakdown.print("");
   }
 };
 
@@ -304,6 +379,19 @@ int main(int argc, char** argv) {
           ids.data[3 * p + 2] = got != gt && got != 0 ? 255 : 0;
         }
         write_ppm(ppm_dir + "/ids_" + n + ".ppm", ids);
+        // Depth error against the input: red where the render is nearer, blue where farther, full
+        // at 10 cm; depth edges (clean) in green; no measurement black.
+        const std::vector<uint8_t> edges = depth_edges(clean.depth);
+        dqo::ImageRgb8 err(r.width, r.height, 3, 0);
+        for (size_t p = 0; p < r.depth.size(); ++p) {
+          const float d = noisy.depth.data[p];
+          if (!(d > 0.f)) continue;
+          const float e = std::clamp((r.depth[p] - d) / 0.1f, -1.f, 1.f);
+          err.data[3 * p] = static_cast<uint8_t>(255.f * std::max(0.f, -e));
+          err.data[3 * p + 1] = edges[p] ? 90 : 0;
+          err.data[3 * p + 2] = static_cast<uint8_t>(255.f * std::max(0.f, e));
+        }
+        write_ppm(ppm_dir + "/depth_error_" + n + ".ppm", err);
       }
     }
   }

@@ -1,6 +1,6 @@
 // Properties of the CPU rasteriser's forward pass: one Gaussian's rendered mass against the
 // analytic integral, independence of insertion order, thread-count independence of the images, the
-// instance opacity `ins`, the dominant object ID, the depth of a flat wall.
+// instance opacity `ins`, the dominant object ID, the depth of a flat wall, the surface depth.
 
 #include <gtest/gtest.h>
 
@@ -85,7 +85,9 @@ TEST(Rasteriser, RenderedMassMatchesTheIntegral) {
 
 // The plainest renderer the definition allows: every pixel walks all Gaussians in depth order,
 // takes those whose 3σ square's tiles hold it, with the shared maths (no bins, no masks, no row
-// spans, no loop swap). The rasteriser must agree with it exactly.
+// spans, no loop swap). The rasteriser must agree with it exactly. The surface depth is computed
+// here from its definition over the pixel's list of contributors, without the shared maths'
+// running form (surface_step).
 Images<double> naive_render(const DoubleGaussians& d, const PinholeCamera& cam, const SE3& T_cw,
                             const RenderSettings& settings) {
   CameraView<double> view;
@@ -128,6 +130,10 @@ Images<double> naive_render(const DoubleGaussians& d, const PinholeCamera& cam, 
       PixelAccum<double> acc = pixel_accum_start<double>();
       double ins = 0, best = 0;
       uint32_t best_id = 0;
+      struct Contribution {
+        double alpha, z, t_after;
+      };
+      std::vector<Contribution> contributions;
       for (const Entry& e : entries) {
         if (x / 16 < e.tx0 || x / 16 > e.tx1 || y / 16 < e.ty0 || y / 16 > e.ty1) continue;
         double alpha, vis;
@@ -138,6 +144,7 @@ Images<double> naive_render(const DoubleGaussians& d, const PinholeCamera& cam, 
         const Vec3<double> c = {d.colour[3 * e.index], d.colour[3 * e.index + 1],
                                 d.colour[3 * e.index + 2]};
         if (!composite_step(alpha, c, e.p.depth, &acc)) break;
+        contributions.push_back({alpha, e.p.depth, acc.transmittance});
         if (d.object_id[e.index] == settings.ins_object && settings.ins_object != 0 &&
             d.type[e.index] == uint8_t(GaussianType::kOpaque))
           ins += alpha;
@@ -149,6 +156,29 @@ Images<double> naive_render(const DoubleGaussians& d, const PinholeCamera& cam, 
       im.rgb[3 * p + 1] = acc.rgb.y + t * settings.background[1];
       im.rgb[3 * p + 2] = acc.rgb.z + t * settings.background[2];
       im.depth[p] = acc.depth;
+      if (settings.surface_depth && !contributions.empty()) {
+        // Runs [begin, end) split at gaps; the surface: the first run where T_after reaches ½,
+        // else the last.
+        size_t begin = 0, end = 0, run_begin = 0;
+        for (size_t k = 0; k <= contributions.size(); ++k) {
+          const bool gap =
+              k == contributions.size() ||
+              (k > 0 && contributions[k].z - contributions[k - 1].z >
+                            std::max<double>(settings.surface_gap, settings.surface_gap_relative *
+                                                                       contributions[k - 1].z));
+          if (!gap) continue;
+          begin = run_begin, end = k;
+          if (contributions[k - 1].t_after <= 0.5) break;
+          run_begin = k;
+        }
+        double num = 0, den = 0, t = 1;
+        for (size_t k = begin; k < end; ++k) {
+          num += t * contributions[k].alpha * contributions[k].z;
+          den += t * contributions[k].alpha;
+          t *= 1 - contributions[k].alpha;
+        }
+        im.depth[p] = num / den;
+      }
       im.alpha[p] = 1 - t;
       im.ins[p] = ins;
       im.dominant_id[p] = best_id;
@@ -185,6 +215,83 @@ TEST(Rasteriser, MatchesANaiveRenderer) {
     stopped += ref.alpha[p] > 1 - 1e-3;  // T below 1e-4 / (1 − α) for α ≤ 0.9: stopped
   }
   EXPECT_GT(stopped, 100);  // the early stop was exercised
+}
+
+// The same for the surface depth, on a scene of many overlapping surfaces.
+TEST(Rasteriser, SurfaceDepthMatchesANaiveRenderer) {
+  const PinholeCamera cam = testing::make_camera(90, 70, 70.0);
+  const SE3 T_cw = testing::test_pose();
+  std::mt19937_64 rng(13);
+  DoubleGaussians d;
+  for (int i = 0; i < 400; ++i) {
+    GaussianInit g =
+        testing::gaussian_at(cam, T_cw, uniform(rng, -30, 120), uniform(rng, -30, 100),
+                             uniform(rng, 0.5, 4.0), rng, std::log(0.01), std::log(0.2));
+    d.add(g, uniform(rng, 0.05, 0.95));
+  }
+  RenderSettings settings;
+  settings.surface_depth = true;
+  const Images<double> ref = naive_render(d, cam, T_cw, settings);
+  const Images<double> im = render(d.arrays(), cam, T_cw, settings, 2);
+  settings.surface_depth = false;
+  settings.normalise_depth = true;
+  const Images<double> mixed = render(d.arrays(), cam, T_cw, settings, 2);
+  int differs = 0;
+  for (size_t p = 0; p < ref.depth.size(); ++p) {
+    ASSERT_NEAR(im.depth[p], ref.depth[p], 1e-12) << p;
+    differs += std::abs(im.depth[p] - mixed.depth[p]) > 0.05;
+  }
+  EXPECT_GT(differs, 500);  // the surfaces are split, often
+}
+
+// At a silhouette, a front wall (z = 1.5, x < 0) over a back wall (z = 3): the surface depth is
+// the back wall's where the front one's fringe covers less than half the pixel, and the front
+// wall's where it covers more, though the back one still shows through; the normalised depth
+// mixes the two on those pixels. The front wall's coverage comes from a render of it alone.
+TEST(Rasteriser, SurfaceDepthAtASilhouette) {
+  const PinholeCamera cam = testing::make_camera(64, 48, 50.0);
+  GaussianMap front, both;
+  auto wall = [](GaussianMap* map, double z, double x1, double spacing) {
+    for (double y = -2.0; y <= 2.0; y += spacing)
+      for (double x = -3.0; x <= x1; x += spacing) {
+        GaussianInit g;
+        g.position = Eigen::Vector3f(x, y, z);
+        g.log_scale = Eigen::Vector3f(std::log(spacing), std::log(spacing), std::log(0.001));
+        g.opacity = 0.9f;
+        map->add(g);
+      }
+  };
+  wall(&front, 1.5, 0.0, 0.03);
+  wall(&both, 1.5, 0.0, 0.03);
+  wall(&both, 3.0, 3.0, 0.06);
+  auto r = make_cpu_rasteriser(2);
+  RenderOutput coverage, surface, mixed;
+  RenderSettings settings;
+  r->forward(front, cam, SE3(), settings, &coverage, nullptr);
+  settings.normalise_depth = true;
+  r->forward(both, cam, SE3(), settings, &mixed, nullptr);
+  settings.surface_depth = true;
+  r->forward(both, cam, SE3(), settings, &surface, nullptr);
+  int fringe = 0, front_kept = 0;
+  for (size_t p = 0; p < surface.depth.size(); ++p) {
+    ASSERT_GT(surface.alpha[p], 0.99f);
+    const float a = coverage.alpha[p];
+    if (a < 0.01f) {
+      EXPECT_NEAR(surface.depth[p], 3.0, 1e-4);
+    } else if (a < 0.45f) {
+      EXPECT_NEAR(surface.depth[p], 3.0, 1e-4) << p;
+      EXPECT_LT(mixed.depth[p], 3.0 - 0.01) << p;
+      ++fringe;
+    } else if (a > 0.55f) {
+      EXPECT_NEAR(surface.depth[p], 1.5, 1e-4) << p;
+      if (a < 0.99f) {
+        EXPECT_GT(mixed.depth[p], 1.5 + 0.01) << p;
+        ++front_kept;
+      }
+    }
+  }
+  EXPECT_GT(fringe, 0);
+  EXPECT_GT(front_kept, 0);
 }
 
 TEST(Rasteriser, EmptyMapRendersTheBackground) {

@@ -1,8 +1,8 @@
 // The CPU rasteriser's backward pass against central finite differences, in double precision, for
-// every parameter of every Gaussian and every output (rgb, depth raw and normalised, accumulated
-// alpha, ins). The Gaussians sit away from the cut-offs: transmittance stays far above the early
-// stop, opacities below the 0.99 cap, and the 1/255 boundary moves by far less than a pixel spacing
-// for the step used, so the rendered outputs are smooth in the parameters.
+// every parameter of every Gaussian and every output (rgb, depth raw, normalised and of the
+// surface, accumulated alpha, ins). The Gaussians sit away from the cut-offs: transmittance stays
+// far above the early stop, opacities below the 0.99 cap, and the 1/255 boundary moves by far less
+// than a pixel spacing for the step used, so the rendered outputs are smooth in the parameters.
 
 #include <gtest/gtest.h>
 
@@ -21,7 +21,7 @@ using testing::Images;
 using testing::render;
 using testing::uniform;
 
-enum class Output { kRgb, kDepth, kDepthNormalised, kAlpha, kIns };
+enum class Output { kRgb, kDepth, kDepthNormalised, kDepthSurface, kAlpha, kIns };
 
 struct Fixture {
   PinholeCamera camera = testing::make_camera(64, 48, 60.0);
@@ -30,9 +30,12 @@ struct Fixture {
   DoubleGaussians gaussians;
 };
 
-Fixture make_fixture(uint64_t seed, bool normalise_depth) {
+// For the surface depth, the Gaussians lie in two layers 0.6 m apart, 0.12 m deep each (two
+// surfaces, fringes of the front one over the back one) rather than spread over 2 to 3 m.
+Fixture make_fixture(uint64_t seed, Output output) {
   Fixture f;
-  f.settings.normalise_depth = normalise_depth;
+  f.settings.normalise_depth = output == Output::kDepthNormalised;
+  f.settings.surface_depth = output == Output::kDepthSurface;
   f.settings.ins_object = 3;
   f.settings.background[0] = 0.3f;
   f.settings.background[1] = 0.6f;
@@ -43,25 +46,32 @@ Fixture make_fixture(uint64_t seed, bool normalise_depth) {
                                 GaussianType::kTransparent, GaussianType::kOpaque,
                                 GaussianType::kOpaque,      GaussianType::kOpaque};
   for (int i = 0; i < 6; ++i) {
-    GaussianInit g =
-        testing::gaussian_at(f.camera, f.T_cw, uniform(rng, 14, 50), uniform(rng, 12, 36),
-                             uniform(rng, 2.0, 3.0), rng, std::log(0.06), std::log(0.15));
+    GaussianInit g = testing::gaussian_at(
+        f.camera, f.T_cw, uniform(rng, 14, 50), uniform(rng, 12, 36),
+        f.settings.surface_depth ? (i % 2 ? 2.0 : 2.6) + uniform(rng, 0.0, 0.12)
+                                 : uniform(rng, 2.0, 3.0),
+        rng, std::log(0.06), std::log(0.15));
     g.object_id = ids[i];
     g.type = types[i];
-    f.gaussians.add(g, uniform(rng, 0.3, 0.9));
+    // Front Gaussians opaque enough to be the surface near their centres.
+    f.gaussians.add(g, uniform(rng, f.settings.surface_depth && i % 2 ? 0.7 : 0.3, 0.9));
   }
   return f;
 }
 
-// Fixed random weights per output value: L = Σ w · output.
+// Fixed random weights per output value: L = Σ w · (output − base output). The base, a constant,
+// changes no gradient; it makes the round-off of a difference L(x + ε) − L(x − ε) scale with the
+// change of the outputs rather than with their size (the surface depth's gradients in scale,
+// rotation and opacity are small: they go with the depth offsets within a surface).
 struct Loss {
   Output output;
   std::vector<double> w;
+  std::vector<double> base;
 
   double operator()(const Images<double>& im) const {
     const std::vector<double>& v = values(im);
     double sum = 0.0;
-    for (size_t i = 0; i < v.size(); ++i) sum += w[i] * v[i];
+    for (size_t i = 0; i < v.size(); ++i) sum += w[i] * (v[i] - base[i]);
     return sum;
   }
   const std::vector<double>& values(const Images<double>& im) const {
@@ -70,6 +80,7 @@ struct Loss {
         return im.rgb;
       case Output::kDepth:
       case Output::kDepthNormalised:
+      case Output::kDepthSurface:
         return im.depth;
       case Output::kAlpha:
         return im.alpha;
@@ -86,6 +97,7 @@ struct Loss {
         break;
       case Output::kDepth:
       case Output::kDepthNormalised:
+      case Output::kDepthSurface:
         g.depth = w.data();
         break;
       case Output::kAlpha:
@@ -100,18 +112,38 @@ struct Loss {
 };
 
 void check_gradients(Output output, uint64_t seed) {
-  Fixture f = make_fixture(seed, output == Output::kDepthNormalised);
+  Fixture f = make_fixture(seed, output);
   const Images<double> base =
       render(f.gaussians.arrays(), f.camera, f.T_cw, f.settings, 2, /*keep_state=*/true);
   // Away from the early stop; every Gaussian visible.
   EXPECT_GT(*std::min_element(base.alpha.begin(), base.alpha.end()), -1e-12);
   EXPECT_LT(*std::max_element(base.alpha.begin(), base.alpha.end()), 0.999);
 
+  if (output == Output::kDepthSurface) {
+    // The fixture must exercise both choices against the normalised depth, which mixes the two
+    // surfaces: pixels where the front one's fringe is skipped, and pixels where the front one
+    // is kept while the back one still adds to the mix.
+    RenderSettings mixed = f.settings;
+    mixed.surface_depth = false;
+    mixed.normalise_depth = true;
+    const Images<double> m = render(f.gaussians.arrays(), f.camera, f.T_cw, mixed, 2);
+    int back_kept = 0, front_kept = 0;
+    for (size_t p = 0; p < m.depth.size(); ++p) {
+      back_kept += base.depth[p] > 2.4 && base.depth[p] - m.depth[p] > 0.02;
+      front_kept += base.depth[p] < 2.4 && m.depth[p] - base.depth[p] > 0.02;
+    }
+    EXPECT_GT(back_kept, 10);
+    EXPECT_GT(front_kept, 10);
+  }
+
   std::mt19937_64 rng(seed + 100);
-  Loss loss{output, {}};
+  Loss loss{output, {}, {}};
   loss.w.resize(loss.values(base).size());
   for (double& w : loss.w) w = uniform(rng, -1, 1);
-  ASSERT_GT(std::abs(loss(base)), 0.0);
+  loss.base = loss.values(base);
+  double weighted = 0.0;  // Σ w · output: the outputs carry something for the weights to probe
+  for (size_t i = 0; i < loss.w.size(); ++i) weighted += loss.w[i] * loss.base[i];
+  ASSERT_GT(std::abs(weighted), 0.0);
 
   const size_t n = f.gaussians.size();
   std::vector<double> g_pos(3 * n, 0), g_ls(3 * n, 0), g_rot(4 * n, 0), g_op(n, 0), g_col(3 * n, 0);
@@ -158,6 +190,7 @@ void check_gradients(Output output, uint64_t seed) {
 TEST(RasteriserGradients, Rgb) { check_gradients(Output::kRgb, 11); }
 TEST(RasteriserGradients, Depth) { check_gradients(Output::kDepth, 12); }
 TEST(RasteriserGradients, NormalisedDepth) { check_gradients(Output::kDepthNormalised, 13); }
+TEST(RasteriserGradients, SurfaceDepth) { check_gradients(Output::kDepthSurface, 16); }
 TEST(RasteriserGradients, AccumulatedAlpha) { check_gradients(Output::kAlpha, 14); }
 TEST(RasteriserGradients, Ins) { check_gradients(Output::kIns, 15); }
 
@@ -223,7 +256,7 @@ TEST(RasteriserGradients, ThroughTheEarlyStop) {
 
 // The float backend (make_cpu_rasteriser) agrees with the double core it is instantiated from.
 TEST(RasteriserGradients, FloatMatchesDouble) {
-  Fixture f = make_fixture(21, false);
+  Fixture f = make_fixture(21, Output::kRgb);
   GaussianMap map;
   std::mt19937_64 rng(22);
   for (size_t i = 0; i < f.gaussians.size(); ++i) {

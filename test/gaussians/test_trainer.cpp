@@ -76,6 +76,65 @@ TEST(Trainer, TinyKeyframesReachQualityAndIds) {
   for (uint32_t id = 1; id <= 5; ++id) EXPECT_GT(trainer.map().indices_of(id).size(), 20u) << id;
 }
 
+// Depth-edge pixels of a depth image: some 8-neighbour differs by more than max(5 cm, 3 %).
+std::vector<uint8_t> depth_edges(const DepthImage& depth) {
+  std::vector<uint8_t> edge(depth.data.size(), 0);
+  for (int v = 1; v + 1 < depth.height; ++v)
+    for (int u = 1; u + 1 < depth.width; ++u) {
+      const float d = depth.at(u, v);
+      for (int dv = -1; dv <= 1; ++dv)
+        for (int du = -1; du <= 1; ++du) {
+          const float dn = depth.at(u + du, v + dv);
+          if (d > 0.f && dn > 0.f && std::abs(dn - d) > std::max(0.05f, 0.03f * d))
+            edge[static_cast<size_t>(v) * depth.width + u] = 1;
+        }
+    }
+  return edge;
+}
+
+// Params::surface_depth changes what render() gives, not what training does: the same keyframes
+// make the same map; render() then gives the rasteriser's surface depth, which at the depth edges
+// of the keyframes is nearer the measurement than the normalised depth that mixes the two sides.
+TEST(Trainer, RendersTheSurfaceDepth) {
+  GaussianTrainer::Params params;
+  params.iterations = 30;
+  params.surface_depth = false;
+  GaussianTrainer mixed(params, make_cpu_rasteriser(2));
+  params.surface_depth = true;
+  GaussianTrainer surface(params, make_cpu_rasteriser(2));
+  const std::vector<int> frames = {0, 2};
+  for (const int f : frames) {
+    mixed.add_keyframe(keyframe_of(f));
+    surface.add_keyframe(keyframe_of(f));
+  }
+  ASSERT_EQ(mixed.map().positions(), surface.map().positions());
+  ASSERT_EQ(mixed.map().log_scales(), surface.map().log_scales());
+
+  double edge_mixed = 0.0, edge_surface = 0.0;
+  size_t n_edge = 0;
+  for (const int f : frames) {
+    const Frame& frame = tiny_frame(f);
+    RenderOutput a, b, reference;
+    mixed.render(tiny().camera, frame.T_wc, &a);
+    surface.render(tiny().camera, frame.T_wc, &b);
+    RenderSettings settings;
+    settings.surface_depth = true;
+    surface.rasteriser().forward(surface.map(), tiny().camera, frame.T_wc.inverse(), settings,
+                                 &reference, nullptr);
+    ASSERT_EQ(b.depth, reference.depth);
+    ASSERT_EQ(a.rgb, b.rgb);
+    const std::vector<uint8_t> edge = depth_edges(frame.depth);
+    for (size_t p = 0; p < edge.size(); ++p) {
+      if (!edge[p]) continue;
+      edge_mixed += std::abs(a.depth[p] - frame.depth.data[p]);
+      edge_surface += std::abs(b.depth[p] - frame.depth.data[p]);
+      ++n_edge;
+    }
+  }
+  ASSERT_GT(n_edge, 100u);
+  EXPECT_LT(edge_surface, 0.8 * edge_mixed);  // 10.5 → 6.8 cm measured
+}
+
 TEST(Trainer, FirstKeyframeCoversTheView) {
   GaussianTrainer::Params params;
   params.iterations = 0;

@@ -9,7 +9,8 @@
 // normalised where used, and their gradient is taken through that normalisation. A Gaussian adds
 // to a pixel where α = min(0.99, o exp(−½ dᵀ Σ⁻¹ d)) ≥ 1/255 and the pixel's tile is within its 3σ
 // square; a pixel stops once its transmittance would fall below 1e-4. Gradients are exact
-// derivatives of the rendered outputs, zero where a cap or clamp is active.
+// derivatives of the rendered outputs, zero where a cap or clamp is active; which Gaussians form
+// a pixel's surface (RenderSettings::surface_depth) is, like those cut-offs, piecewise constant.
 
 #include <cstdint>
 #include <memory>
@@ -23,23 +24,30 @@ namespace dqo::gs {
 
 struct RenderSettings {
   bool normalise_depth = false;  // depth / accumulated alpha instead of Σ T α z
-  uint32_t ins_object = 0;       // object whose instance opacity `ins` is rendered (0: none)
+  // Depth of the one surface the pixel sees instead (takes precedence over normalise_depth): the
+  // normalised depth over the run of contributors, split where consecutive ones lie more than
+  // max(surface_gap, surface_gap_relative · z) apart in depth, in which the accumulated alpha
+  // reaches ½ (the last run where it never does). See math/composite.h.
+  bool surface_depth = false;
+  float surface_gap = 0.02f;           // metres
+  float surface_gap_relative = 0.03f;  // of the depth
+  uint32_t ins_object = 0;             // object whose instance opacity `ins` is rendered (0: none)
   float background[3] = {0.f, 0.f, 0.f};
-  float near = 0.01f;            // metres: Gaussians nearer than this are culled
+  float near = 0.01f;  // metres: Gaussians nearer than this are culled
 };
 
 // Per pixel, row-major; rgb interleaved.
 struct RenderOutput {
   int width = 0, height = 0;
-  std::vector<float> rgb;        // 3 per pixel
-  std::vector<float> depth;      // Σ T_i α_i z_i (or normalised, see RenderSettings)
-  std::vector<float> alpha;      // accumulated alpha 1 − T_final
-  std::vector<float> ins;        // Σ α_i over the OG Gaussians of settings.ins_object (METHOD §4)
+  std::vector<float> rgb;    // 3 per pixel
+  std::vector<float> depth;  // Σ T_i α_i z_i (or normalised, or the surface's: RenderSettings)
+  std::vector<float> alpha;  // accumulated alpha 1 − T_final
+  std::vector<float> ins;    // Σ α_i over the OG Gaussians of settings.ins_object (METHOD §4)
   std::vector<uint32_t> dominant_id;  // object ID of the Gaussian of largest T_i α_i (0: none)
 };
 
 // dL/d(outputs), same layout as RenderOutput; an empty vector means zero. `depth` is the gradient
-// of the depth as rendered (normalised when the settings normalise it).
+// of the depth as rendered (normalised, or the surface's, as the settings say).
 struct OutputGradients {
   std::vector<float> rgb, depth, ins;
   std::vector<float> alpha;  // of the accumulated alpha (e.g. a silhouette loss)

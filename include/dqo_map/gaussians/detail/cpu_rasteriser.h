@@ -42,7 +42,7 @@ struct ImageBuffers {
 template <typename S>
 struct ImageGradients {
   const S* rgb = nullptr;    // [P*3]
-  const S* depth = nullptr;  // [P] (of the depth as output: normalised where the settings say so)
+  const S* depth = nullptr;  // [P] (of the depth as output: normalised or the surface's)
   const S* ins = nullptr;    // [P]
   const S* alpha = nullptr;  // [P]
 };
