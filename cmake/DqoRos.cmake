@@ -4,7 +4,7 @@
 # Components the messages need are required for the ring; if one is missing the ring is switched off
 # with a message (the core still builds), never a failed configure.
 set(DQO_ROS_MSG_COMPONENTS message_generation std_msgs geometry_msgs sensor_msgs)
-set(DQO_ROS_NODE_COMPONENTS roscpp rosbag tf2_msgs tf2_ros message_filters nav_msgs rostest)
+set(DQO_ROS_NODE_COMPONENTS roscpp rosbag tf2_msgs tf2_ros message_filters nav_msgs visualization_msgs rostest)
 
 set(_dqo_missing "")
 foreach(_c ${DQO_ROS_MSG_COMPONENTS} ${DQO_ROS_NODE_COMPONENTS})
@@ -44,7 +44,7 @@ generate_messages(DEPENDENCIES std_msgs geometry_msgs sensor_msgs)
 # Libraries of the core that downstream catkin packages may link (those whose dependencies exist).
 set(DQO_EXPORTED_LIBRARIES dqo_geometry dqo_common)
 if(DQO_HAVE_YAML)
-  list(APPEND DQO_EXPORTED_LIBRARIES dqo_sim)
+  list(APPEND DQO_EXPORTED_LIBRARIES dqo_config dqo_sim)
 endif()
 if(DQO_HAVE_OPENCV AND DQO_HAVE_OPEN3D AND DQO_HAVE_YAML)
   list(APPEND DQO_EXPORTED_LIBRARIES dqo_io)

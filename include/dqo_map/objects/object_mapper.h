@@ -8,7 +8,8 @@
 // detections one-to-one (coarse IoU, fine QD, or both); add observations and class votes; merge
 // pieces of one occluded object; start candidates from unmatched detections (single-view depth
 // ellipsoid until enough views for the box-plane initialisation); confirm and remove; refine the
-// objects seen by the IoU loss over every keyframe that saw them.
+// objects seen by the IoU loss over every keyframe that saw them, and fit their boxes
+// (BoxFitParams: what the object list reports).
 //
 // Not thread-safe: one owner calls it (the node's callback thread, or the offline runner).
 #include <cstdint>

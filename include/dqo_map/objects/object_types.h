@@ -9,6 +9,7 @@
 #include "dqo_map/common/dataset.h"
 #include "dqo_map/geometry/box2d.h"
 #include "dqo_map/geometry/dual_quadric.h"
+#include "dqo_map/geometry/oriented_box.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/geometry/quadric_init.h"
 #include "dqo_map/geometry/se3.h"
@@ -48,11 +49,18 @@ struct MapObject {
   DualQuadric quadric;
   bool has_quadric = false;     // false only for a candidate whose first view gave no ellipsoid
   bool from_boxes = false;      // initialised from box planes (≥ 3 views), not from one depth view
+  // The object's oriented box fitted to its detections (BoxFitParams); the ellipsoid's box
+  // (box_from_quadric) until there is one. Object lists report this.
+  bool has_box = false;
+  OrientedBox box;
   int class_id = 0;             // winner of the class vote
   std::string class_name;
   double confidence = 0.0;      // share of the (score-weighted) class vote won by class_id
   std::map<int, double> class_votes;           // class ID -> summed detection score
   std::vector<ObjectObservation> observations; // oldest first, at most one per keyframe
+  // Every observation ever added (also those before a restart, whose keyframes are gone, and
+  // those of objects merged into this one); observations.size() counts this run's only.
+  int observation_count = 0;
   int missed = 0;               // consecutive keyframes where it should be seen and was not detected
   KeyFrameId first_keyframe = 0;
   KeyFrameId last_keyframe = 0; // last keyframe with an observation
@@ -93,7 +101,16 @@ struct KeyFrameAssociation {
   std::vector<ObjectEvent> events;             // in the order they happened
   double association_ms = 0.0;                 // filter + visibility + association + merge + init
   double refinement_ms = 0.0;                  // IoU refinement of the objects seen
+  double box_fit_ms = 0.0;                     // box fits of the objects seen
   int refined_objects = 0;
+  // One entry per refinement run in this keyframe (ok or not), for per-object timings.
+  struct Refinement {
+    ObjectId id = 0;
+    bool ok = false;
+    int views = 0;
+    double ms = 0.0;
+  };
+  std::vector<Refinement> refinements;
 };
 
 }  // namespace dqo::objects

@@ -1,0 +1,424 @@
+#include "dqo_map/objects/object_mapper.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <set>
+
+#include "association.h"
+#include "box_fit.h"
+#include "depth_init.h"
+#include "detection_filter.h"
+#include "dqo_map/geometry/conic.h"
+#include "dqo_map/objects/object_refinement.h"
+#include "object_merge.h"
+#include "state_file.h"
+#include "visibility.h"
+
+namespace dqo::objects {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// What the mapper keeps of a keyframe: enough to turn an observation box back into a view.
+struct KeyframeRecord {
+  PinholeCamera camera;
+  SE3 T_wc;
+  Eigen::Matrix<double, 3, 4> P = Eigen::Matrix<double, 3, 4>::Zero();
+  uint64_t sequence = 0;  // how many keyframes came before it
+};
+
+bool finite_pose(const SE3& T) {
+  return T.translation().allFinite() && T.quaternion().coeffs().allFinite();
+}
+
+}  // namespace
+
+struct ObjectMapper::Impl {
+  ObjectMapperParams params;
+  ObjectId next_id = 1;
+  uint64_t sequence = 0;
+  std::map<ObjectId, MapObject> objects;
+  std::map<ObjectId, uint64_t> first_sequence;  // for the candidates' age
+  std::map<KeyFrameId, KeyframeRecord> keyframes;
+  std::map<int, std::string> class_names;
+
+  std::optional<BoxObservation> view_of(const ObjectObservation& o) const {
+    const auto it = keyframes.find(o.keyframe_id);
+    if (it == keyframes.end()) return std::nullopt;
+    BoxObservation v;
+    v.P = it->second.P;
+    v.box = o.box;
+    v.width = it->second.camera.width;
+    v.height = it->second.camera.height;
+    return v;
+  }
+
+  std::vector<BoxObservation> views_of(const MapObject& object, int max_views) const {
+    std::vector<BoxObservation> views;
+    for (const ObjectObservation& o : object.observations) {
+      if (auto v = view_of(o)) views.push_back(*v);
+    }
+    if (max_views > 0 && static_cast<int>(views.size()) > max_views) {
+      views.erase(views.begin(), views.end() - max_views);
+    }
+    return views;
+  }
+
+  // Box-plane initialisation once the object has enough views; until it succeeds the object keeps
+  // its single-view ellipsoid (or none).
+  void try_box_init(MapObject* object) const {
+    if (object->from_boxes) return;
+    if (static_cast<int>(object->observations.size()) < params.lifecycle.min_box_views) return;
+    const std::vector<BoxObservation> views = views_of(*object, params.refinement.max_views);
+    if (static_cast<int>(views.size()) < params.lifecycle.min_box_views) return;
+    const QuadricInitResult r = initialise_from_boxes(views, params.lifecycle.box_init);
+    if (!r.ok || !r.quadric.is_valid()) return;
+    object->quadric = r.quadric;
+    object->has_quadric = true;
+    object->from_boxes = true;
+  }
+
+  void add_observation(MapObject* object, KeyFrameId keyframe_id, const Detection2d& d) const {
+    ObjectObservation o;
+    o.keyframe_id = keyframe_id;
+    o.box = d.box;
+    o.class_id = d.class_id;
+    o.score = d.score;
+    object->observations.push_back(o);
+    ++object->observation_count;
+    object->class_votes[d.class_id] += std::max(0.0, static_cast<double>(d.score));
+    update_class(object);
+    const auto name = class_names.find(object->class_id);
+    if (name != class_names.end()) object->class_name = name->second;
+    object->missed = 0;
+    object->last_keyframe = keyframe_id;
+  }
+
+  // "Should be seen" (for the miss counts): visible, not hidden behind a nearer object, wholly
+  // inside the image (the filter drops boxes cut by the border) and, where depth is known, not
+  // behind something nearer than the ellipsoid's front.
+  bool should_be_seen(const MapObject& object, const VisibleObject& v, const ObjectKeyFrame& kf) const {
+    const PinholeCamera& cam = kf.camera;
+    if (v.unclipped.touches_border(cam.width, cam.height, params.filter.border_margin_px)) return false;
+    if (kf.depth.data == nullptr) return true;
+    const double front = v.depth - object.quadric.semi_axes().maxCoeff();
+    const Eigen::Vector2d c = v.box.centre();
+    const double hw = 0.25 * v.box.width(), hh = 0.25 * v.box.height();
+    int valid = 0, nearer = 0;
+    for (int k = 0; k < 25; ++k) {
+      const int u = static_cast<int>(std::lround(c.x() + hw * ((k % 5) - 2) / 2.0));
+      const int w = static_cast<int>(std::lround(c.y() + hh * ((k / 5) - 2) / 2.0));
+      if (u < 0 || w < 0 || u >= kf.depth.width || w >= kf.depth.height) continue;
+      const float z = kf.depth.at(u, w);
+      if (!(z > 0.0f) || !std::isfinite(z)) continue;
+      ++valid;
+      if (z < front - 0.05) ++nearer;
+    }
+    return valid == 0 || 2 * nearer <= valid;
+  }
+
+  void remove(ObjectId id, KeyFrameAssociation* out) {
+    objects.erase(id);
+    first_sequence.erase(id);
+    out->events.push_back({ObjectEvent::Type::kRemoved, id, 0});
+  }
+
+  KeyFrameAssociation process(const ObjectKeyFrame& kf);
+  void refine_seen(const std::set<ObjectId>& seen, KeyFrameAssociation* out);
+};
+
+ObjectMapper::ObjectMapper(const ObjectMapperParams& params, ObjectId first_id)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->params = params;
+  impl_->next_id = std::max<ObjectId>(1, first_id);
+}
+
+ObjectMapper::~ObjectMapper() = default;
+
+KeyFrameAssociation ObjectMapper::process_keyframe(const ObjectKeyFrame& keyframe, std::string* error) {
+  auto reject = [&](const std::string& message) {
+    if (error) *error = "keyframe " + std::to_string(keyframe.id) + ": " + message;
+    KeyFrameAssociation empty;
+    empty.keyframe_id = keyframe.id;
+    return empty;
+  };
+  if (impl_->keyframes.count(keyframe.id)) return reject("repeated keyframe ID; ignored");
+  const PinholeCamera& cam = keyframe.camera;
+  if (!(cam.fx > 0.0) || !(cam.fy > 0.0) || !std::isfinite(cam.cx) || !std::isfinite(cam.cy) ||
+      cam.width <= 0 || cam.height <= 0) {
+    return reject("invalid camera (focal lengths and image size must be positive)");
+  }
+  if (!finite_pose(keyframe.T_wc)) return reject("pose is not finite");
+  if (keyframe.depth.data != nullptr &&
+      (keyframe.depth.width != cam.width || keyframe.depth.height != cam.height)) {
+    return reject("depth image size " + std::to_string(keyframe.depth.width) + "x" +
+                  std::to_string(keyframe.depth.height) + " differs from the camera's " +
+                  std::to_string(cam.width) + "x" + std::to_string(cam.height));
+  }
+  if (error) error->clear();
+  return impl_->process(keyframe);
+}
+
+KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
+  const auto t0 = Clock::now();
+  KeyFrameAssociation out;
+  out.keyframe_id = kf.id;
+  const size_t n_in = kf.detections.size();
+  out.verdicts.assign(n_in, DetectionVerdict::kInvalid);
+  out.object_ids.assign(n_in, 0);
+
+  KeyframeRecord record;
+  record.camera = kf.camera;
+  record.T_wc = kf.T_wc;
+  const SE3 T_cw = kf.T_wc.inverse();
+  record.P = kf.camera.projection_matrix(T_cw);
+  record.sequence = sequence++;
+  keyframes[kf.id] = record;
+  for (const Detection2d& d : kf.detections) {
+    if (!d.class_name.empty()) class_names[d.class_id] = d.class_name;
+  }
+
+  // 1. Filter.
+  const FilteredDetections filtered =
+      filter_detections(kf.detections, kf.camera.width, kf.camera.height, params.filter);
+  std::vector<Detection2d> dets;
+  for (size_t i = 0; i < n_in; ++i) {
+    if (filtered.rejected[i]) out.verdicts[i] = *filtered.rejected[i];
+  }
+  for (const int i : filtered.kept) dets.push_back(kf.detections[static_cast<size_t>(i)]);
+
+  // 2. Visibility of the objects with an ellipsoid; candidates without one by their last box.
+  std::vector<MapObject*> with_quadric;
+  std::vector<const DualQuadric*> quadrics;
+  std::vector<AssociationTrack> tracks;
+  std::vector<MapObject*> track_objects;
+  for (auto& [id, o] : objects) {
+    if (o.has_quadric) {
+      with_quadric.push_back(&o);
+      quadrics.push_back(&o.quadric);
+    } else if (!o.observations.empty()) {
+      tracks.push_back({&o, o.observations.back().box});
+      track_objects.push_back(&o);
+    }
+  }
+  const std::vector<VisibleObject> visible =
+      visible_objects(quadrics, kf.camera, T_cw, params.visibility);
+  for (const VisibleObject& v : visible) {
+    tracks.push_back({with_quadric[static_cast<size_t>(v.index)], v.box});
+    track_objects.push_back(with_quadric[static_cast<size_t>(v.index)]);
+  }
+
+  // 3–4. Coarse and fine association, one-to-one.
+  AssociationFrame frame;
+  frame.camera = &kf.camera;
+  frame.T_wc = kf.T_wc;
+  frame.P = record.P;
+  frame.depth = kf.depth;
+  const ViewLookup lookup = [this](const ObjectObservation& o) { return view_of(o); };
+  const AssociationResult assoc =
+      associate(tracks, dets, frame, lookup, params.association, params.lifecycle);
+
+  std::vector<ObjectId> det_object(dets.size(), 0);
+  std::set<ObjectId> seen;
+  for (size_t t = 0; t < tracks.size(); ++t) {
+    const int d = assoc.track_to_detection[t];
+    if (d < 0) continue;
+    MapObject* o = track_objects[t];
+    add_observation(o, kf.id, dets[static_cast<size_t>(d)]);
+    det_object[static_cast<size_t>(d)] = o->id;
+    out.verdicts[static_cast<size_t>(filtered.kept[static_cast<size_t>(d)])] = DetectionVerdict::kAssociated;
+    seen.insert(o->id);
+  }
+  // Misses: visible objects that took no detection.
+  size_t first_visible_track = tracks.size() - visible.size();
+  for (size_t k = 0; k < visible.size(); ++k) {
+    const size_t t = first_visible_track + k;
+    if (assoc.track_to_detection[t] >= 0) continue;
+    MapObject* o = track_objects[t];
+    if (should_be_seen(*o, visible[k], kf)) ++o->missed;
+  }
+
+  // 6. Unmatched detections start candidates.
+  for (size_t d = 0; d < dets.size(); ++d) {
+    if (det_object[d] != 0) continue;
+    const size_t input = static_cast<size_t>(filtered.kept[d]);
+    MapObject o;
+    if (kf.depth.data != nullptr && params.lifecycle.single_view_fallback) {
+      const QuadricInitResult r = initialise_from_depth_robust(dets[d].box, kf.camera, kf.T_wc, kf.depth,
+                                                        params.lifecycle.depth_init);
+      if (!r.ok || !r.quadric.is_valid()) {
+        out.verdicts[input] = DetectionVerdict::kNoInit;
+        continue;
+      }
+      o.quadric = r.quadric;
+      o.has_quadric = true;
+    }
+    o.id = next_id++;
+    o.state = ObjectState::kCandidate;
+    o.first_keyframe = kf.id;
+    add_observation(&o, kf.id, dets[d]);
+    det_object[d] = o.id;
+    out.verdicts[input] = DetectionVerdict::kNewObject;
+    out.events.push_back({ObjectEvent::Type::kCreated, o.id, 0});
+    first_sequence[o.id] = record.sequence;
+    seen.insert(o.id);
+    objects.emplace(o.id, std::move(o));
+  }
+
+  // Box-plane initialisation and confirmation of the objects seen.
+  for (const ObjectId id : seen) {
+    MapObject& o = objects.at(id);
+    try_box_init(&o);
+    if (o.state == ObjectState::kCandidate && o.has_quadric &&
+        o.observation_count >= params.lifecycle.confirm_observations) {
+      o.state = ObjectState::kConfirmed;
+    }
+  }
+
+  // 5. Occlusion merge among the objects this keyframe sees (with their updated ellipsoids).
+  if (params.merge.enabled) {
+    std::vector<const MapObject*> pool;
+    std::vector<const DualQuadric*> pool_quadrics;
+    for (const auto& [id, o] : objects) {
+      if (!o.has_quadric) continue;
+      pool.push_back(&o);
+      pool_quadrics.push_back(&o.quadric);
+    }
+    VisibilityParams merge_visibility = params.visibility;
+    merge_visibility.occlusion_iou = 1.1;  // keep both of two overlapping objects: they may be one
+    const std::vector<VisibleObject> in_view =
+        visible_objects(pool_quadrics, kf.camera, T_cw, merge_visibility);
+    const std::vector<MergePair> merges = find_merges(pool, in_view, params.merge);
+    for (const MergePair& m : merges) {
+      const ObjectId from = pool[static_cast<size_t>(m.from)]->id;
+      const ObjectId into = pool[static_cast<size_t>(m.into)]->id;
+      MapObject& target = objects.at(into);
+      merge_object_into(objects.at(from), &target);
+      try_box_init(&target);
+      objects.erase(from);
+      first_sequence.erase(from);
+      out.events.push_back({ObjectEvent::Type::kMerged, from, into});
+      for (ObjectId& id : det_object) {
+        if (id == from) id = into;
+      }
+      if (seen.erase(from)) seen.insert(into);
+    }
+  }
+
+  // Removal: candidates missed too often or too old, confirmed objects missed too often.
+  std::vector<ObjectId> to_remove;
+  for (const auto& [id, o] : objects) {
+    if (o.state == ObjectState::kCandidate) {
+      const uint64_t age = record.sequence - first_sequence[id];
+      if (o.missed >= params.lifecycle.candidate_max_missed ||
+          (!seen.count(id) && static_cast<int64_t>(age) >= params.lifecycle.candidate_max_age_keyframes)) {
+        to_remove.push_back(id);
+      }
+    } else if (params.lifecycle.remove_after_missed > 0 &&
+               o.missed >= params.lifecycle.remove_after_missed) {
+      to_remove.push_back(id);
+    }
+  }
+  for (const ObjectId id : to_remove) remove(id, &out);
+
+  for (size_t d = 0; d < dets.size(); ++d) {
+    out.filtered.push_back(dets[d]);
+    out.filtered_source.push_back(filtered.kept[d]);
+    const ObjectId id = objects.count(det_object[d]) ? det_object[d] : 0;
+    out.filtered_object_ids.push_back(id);
+    out.object_ids[static_cast<size_t>(filtered.kept[d])] = id;
+  }
+  out.association_ms = ms_since(t0);
+
+  // 7. Refinement of the objects seen, over every keyframe that saw them, and their boxes.
+  refine_seen(seen, &out);
+  return out;
+}
+
+void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAssociation* out) {
+  const auto t0 = Clock::now();
+  for (const ObjectId id : seen) {
+    if (!params.refine) break;
+    const auto it = objects.find(id);
+    if (it == objects.end() || !it->second.has_quadric) continue;
+    MapObject& o = it->second;
+    const std::vector<BoxObservation> views = views_of(o, params.refinement.max_views);
+    if (static_cast<int>(views.size()) < std::max(1, params.refinement.min_views)) continue;
+    const RefinementResult r = refine_quadric(o.quadric, views, params.refinement);
+    KeyFrameAssociation::Refinement entry;
+    entry.id = id;
+    entry.ok = r.ok && r.quadric.is_valid();
+    entry.views = r.views_used;
+    entry.ms = r.time_ms;
+    out->refinements.push_back(entry);
+    if (entry.ok) {
+      o.quadric = r.quadric;
+      ++out->refined_objects;
+    }
+  }
+  out->refinement_ms = ms_since(t0);
+  if (!params.box_fit.enabled) return;
+  const auto t1 = Clock::now();
+  for (const ObjectId id : seen) {
+    const auto it = objects.find(id);
+    if (it == objects.end() || !it->second.has_quadric) continue;
+    MapObject& o = it->second;
+    const BoxFitResult b = fit_box(o.quadric, views_of(o, params.box_fit.max_views), params.box_fit);
+    // Only where the box explains the detections better than the ellipsoid (box_fit.h).
+    o.has_box = b.ok && b.better_than_ellipsoid;
+    if (o.has_box) o.box = b.box;
+  }
+  out->box_fit_ms = ms_since(t1);
+}
+
+int ObjectMapper::update_keyframe_poses(const std::map<KeyFrameId, SE3>& T_wc_by_id) {
+  int known = 0;
+  for (const auto& [id, T_wc] : T_wc_by_id) {
+    const auto it = impl_->keyframes.find(id);
+    if (it == impl_->keyframes.end() || !finite_pose(T_wc)) continue;
+    it->second.T_wc = T_wc;
+    it->second.P = it->second.camera.projection_matrix(T_wc.inverse());
+    ++known;
+  }
+  return known;
+}
+
+std::vector<MapObject> ObjectMapper::objects(bool include_candidates) const {
+  std::vector<MapObject> out;
+  for (const auto& [id, o] : impl_->objects) {
+    if (include_candidates || o.state == ObjectState::kConfirmed) out.push_back(o);
+  }
+  return out;
+}
+
+const MapObject* ObjectMapper::find(ObjectId id) const {
+  const auto it = impl_->objects.find(id);
+  return it == impl_->objects.end() ? nullptr : &it->second;
+}
+
+ObjectId ObjectMapper::next_id() const { return impl_->next_id; }
+
+const ObjectMapperParams& ObjectMapper::params() const { return impl_->params; }
+
+bool ObjectMapper::save_state(const std::string& path, std::string* error) const {
+  return write_state_file(path, impl_->objects, impl_->next_id, error);
+}
+
+bool ObjectMapper::load_state(const std::string& path, std::string* error) {
+  std::map<ObjectId, MapObject> loaded;
+  ObjectId next = 1;
+  if (!read_state_file(path, &loaded, &next, error)) return false;
+  // Never hand out an ID again that this mapper or the file has given.
+  impl_->next_id = std::max(impl_->next_id, next);
+  impl_->objects = std::move(loaded);
+  impl_->first_sequence.clear();
+  for (const auto& [id, o] : impl_->objects) impl_->first_sequence[id] = impl_->sequence;
+  return true;
+}
+
+}  // namespace dqo::objects

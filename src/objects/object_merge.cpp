@@ -1,0 +1,78 @@
+#include "object_merge.h"
+
+#include <algorithm>
+
+namespace dqo::objects {
+
+bool inside_grown_ellipsoid(const DualQuadric& q, const Eigen::Vector3d& p_w, double margin) {
+  const Eigen::Vector3d x = q.rotation().transpose() * (p_w - q.centre());
+  const Eigen::Vector3d axes = q.semi_axes().array() + std::max(0.0, margin);
+  return (x.array() / axes.array()).square().sum() <= 1.0;
+}
+
+std::vector<MergePair> find_merges(const std::vector<const MapObject*>& objects,
+                                   const std::vector<VisibleObject>& visible,
+                                   const MergeParams& params) {
+  std::vector<MergePair> pairs;
+  if (!params.enabled) return pairs;
+  std::vector<int> order(visible.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return visible[a].box.area() > visible[b].box.area(); });
+  std::vector<bool> used(visible.size(), false);
+  for (size_t a = 0; a < order.size(); ++a) {
+    const VisibleObject& big = visible[order[a]];
+    if (used[order[a]]) continue;
+    for (size_t b = a + 1; b < order.size(); ++b) {
+      const VisibleObject& small = visible[order[b]];
+      if (used[order[b]] || !(small.box.area() < big.box.area())) continue;
+      const MapObject& i = *objects[big.index];
+      const MapObject& j = *objects[small.index];
+      if (i.class_id != j.class_id || !i.has_quadric || !j.has_quadric) continue;
+      if (!(overlap_ratio(big.box, small.box) > params.min_overlap)) continue;
+      if (!inside_grown_ellipsoid(i.quadric, j.quadric.centre(), params.max_distance)) continue;
+      pairs.push_back({small.index, big.index});
+      used[order[a]] = used[order[b]] = true;
+      break;
+    }
+  }
+  return pairs;
+}
+
+void update_class(MapObject* object) {
+  double total = 0.0, best = -1.0;
+  for (const auto& [class_id, votes] : object->class_votes) {
+    total += votes;
+    if (votes > best) {
+      best = votes;
+      object->class_id = class_id;
+    }
+  }
+  object->confidence = total > 0.0 ? best / total : 0.0;
+}
+
+void merge_object_into(const MapObject& from, MapObject* into) {
+  std::vector<ObjectObservation> merged = into->observations;
+  for (const ObjectObservation& o : from.observations) {
+    const bool taken = std::any_of(merged.begin(), merged.end(), [&](const ObjectObservation& m) {
+      return m.keyframe_id == o.keyframe_id;
+    });
+    if (!taken) merged.push_back(o);
+  }
+  // Keyframe IDs grow with time (trackers number them in order), so this keeps oldest first.
+  std::stable_sort(merged.begin(), merged.end(),
+                   [](const ObjectObservation& a, const ObjectObservation& b) {
+                     return a.keyframe_id < b.keyframe_id;
+                   });
+  into->observations = std::move(merged);
+  for (const auto& [class_id, votes] : from.class_votes) into->class_votes[class_id] += votes;
+  into->observation_count += from.observation_count;
+  into->missed = std::min(into->missed, from.missed);
+  into->first_keyframe = std::min(into->first_keyframe, from.first_keyframe);
+  into->last_keyframe = std::max(into->last_keyframe, from.last_keyframe);
+  if (from.state == ObjectState::kConfirmed) into->state = ObjectState::kConfirmed;
+  if (from.class_name.size() && into->class_name.empty()) into->class_name = from.class_name;
+  update_class(into);
+}
+
+}  // namespace dqo::objects

@@ -1,0 +1,370 @@
+// association_node: the ROS skin of the object stage (dqo::objects::ObjectMapper). Pairs keyframes
+// with the detections of their images by stamp, maps raw detection boxes through the camera's
+// undistortion, feeds the mapper, and publishes objects, rviz markers, object events and which
+// detection became which object; serves list_objects; keeps the object state file (IDs are never
+// reused, also across restarts). No object maths lives here. Parameters: config/association.yaml
+// (this node) and config/objects.yaml (~objects, the core's), loaded by launch/association.launch.
+//
+// Bad input never stops the node: unusable boxes (NaN, negative size, outside the image, too many)
+// are rejected by the core and counted in a throttled log line; keyframes whose detections never
+// come, detections that match no keyframe, unsupported depth, a missing camera_info are logged and
+// skipped; time going backwards (a looping bag) clears the buffers.
+#include <cstdlib>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <dqo_map/DetectionArray.h>
+#include <dqo_map/KeyFrame.h>
+#include <dqo_map/KeyFrameObjects.h>
+#include <dqo_map/KeyFramePoses.h>
+#include <dqo_map/ListObjects.h>
+#include <dqo_map/ObjectArray.h>
+#include <dqo_map/ObjectEvent.h>
+
+#include "conversions.h"
+#include "dqo_map/objects/object_mapper.h"
+#include "object_conversions.h"
+#include "object_ros_params.h"
+#include "ros_params.h"
+
+namespace dqo::ros_bridge {
+namespace {
+
+namespace fs = std::filesystem;
+using objects::DetectionVerdict;
+
+struct NodeParams {
+  std::string map_frame = "map";
+  double stamp_tolerance = 0.002;  // seconds between a keyframe's and its detections' stamps
+  double buffer_seconds = 5.0;     // how long either side waits for the other (detector latency)
+  bool detections_rectified = false;  // true: boxes already refer to the rectified image
+  bool publish_tf = false;         // map -> object_<id> per confirmed object
+  std::string output_dir;          // empty: $ROS_HOME/dqo_map, else ~/.ros/dqo_map
+  std::string state_file = "objects_state.yaml";
+  int queue_size = 10;
+};
+
+class AssociationNode {
+ public:
+  AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  bool ok() const { return mapper_ != nullptr; }
+
+ private:
+  void on_keyframe(const dqo_map::KeyFrameConstPtr& kf);
+  void on_detections(const dqo_map::DetectionArrayConstPtr& det);
+  void on_camera_info(const sensor_msgs::CameraInfoConstPtr& info);
+  void on_poses(const dqo_map::KeyFramePosesConstPtr& poses);
+  bool on_list(dqo_map::ListObjects::Request& req, dqo_map::ListObjects::Response& res);
+  // A stamp older than the newest one seen on its stream: a bag looped. Clears the buffers.
+  void check_time(const ros::Time& stamp, ros::Time* last, const char* stream);
+  void match();
+  void process(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det);
+  void publish(const std_msgs::Header& header, const objects::KeyFrameAssociation& result);
+  bool throttled(const std::string& kind, double period = 5.0);
+
+  ros::NodeHandle nh_, pnh_;
+  NodeParams p_;
+  std::unique_ptr<objects::ObjectMapper> mapper_;
+  std::string state_path_;
+  ros::Subscriber kf_sub_, det_sub_, info_sub_, poses_sub_;
+  ros::Publisher objects_pub_, markers_pub_, events_pub_, kf_objects_pub_;
+  ros::ServiceServer list_srv_;
+  tf2_ros::TransformBroadcaster tf_broadcaster_;
+
+  std::optional<tracking::CameraCalibration> calibration_;
+  std::optional<tracking::Undistorter> undistorter_;
+  std::deque<dqo_map::KeyFrameConstPtr> keyframes_;  // waiting for detections, ascending stamps
+  std::map<ros::Time, dqo_map::DetectionArrayConstPtr> detections_;
+  std::map<objects::KeyFrameId, SE3> early_poses_;  // corrections of keyframes still buffered
+  ros::Time newest_, last_kf_stamp_, last_det_stamp_;
+  uint64_t unmatched_detections_ = 0, unmatched_keyframes_ = 0;
+  std::map<std::string, ros::WallTime> last_complaint_;
+};
+
+// ROS_*_THROTTLE counts in ROS time, which a looping bag sends backwards: throttle in wall time.
+bool AssociationNode::throttled(const std::string& kind, double period) {
+  const ros::WallTime now = ros::WallTime::now();
+  ros::WallTime& last = last_complaint_[kind];
+  if (!last.isZero() && (now - last).toSec() < period) return true;
+  last = now;
+  return false;
+}
+
+AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh) {
+  pnh_.param("map_frame", p_.map_frame, p_.map_frame);
+  pnh_.param("stamp_tolerance", p_.stamp_tolerance, p_.stamp_tolerance);
+  pnh_.param("buffer_seconds", p_.buffer_seconds, p_.buffer_seconds);
+  pnh_.param("detections_rectified", p_.detections_rectified, p_.detections_rectified);
+  pnh_.param("publish_tf", p_.publish_tf, p_.publish_tf);
+  pnh_.param("output_dir", p_.output_dir, p_.output_dir);
+  pnh_.param("state_file", p_.state_file, p_.state_file);
+  pnh_.param("queue_size", p_.queue_size, p_.queue_size);
+  const std::set<std::string> known = {"map_frame",  "stamp_tolerance", "buffer_seconds", "detections_rectified",
+                                       "publish_tf", "output_dir",      "state_file",     "queue_size", "objects"};
+  for (const std::string& name : unknown_private_params(pnh_, known)) {
+    ROS_WARN("association: ignoring unknown parameter %s/%s", pnh_.getNamespace().c_str(), name.c_str());
+  }
+  if (p_.stamp_tolerance < 0.0 || p_.buffer_seconds <= 0.0 || p_.queue_size < 1 || p_.state_file.empty() ||
+      fs::path(p_.state_file).has_parent_path()) {
+    ROS_FATAL("association: stamp_tolerance must be >= 0, buffer_seconds > 0, queue_size >= 1, state_file a "
+              "plain file name");
+    return;
+  }
+  std::string error;
+  const auto params = read_object_params(pnh_, &error);
+  if (!params) {
+    ROS_FATAL("association: %s", error.c_str());
+    return;
+  }
+  if (p_.output_dir.empty()) {
+    const char* ros_home = std::getenv("ROS_HOME");
+    const char* home = std::getenv("HOME");
+    p_.output_dir = ros_home ? std::string(ros_home) + "/dqo_map" : std::string(home ? home : ".") + "/.ros/dqo_map";
+  }
+  std::error_code ec;
+  fs::create_directories(p_.output_dir, ec);
+  state_path_ = (fs::path(p_.output_dir) / p_.state_file).string();
+  auto mapper = std::make_unique<objects::ObjectMapper>(*params);
+  if (fs::exists(state_path_)) {
+    // A state we cannot read would let IDs be given twice: refuse to start rather than guess.
+    if (!mapper->load_state(state_path_, &error)) {
+      ROS_FATAL("association: cannot load the object state %s: %s (move it away to start a new map)",
+                state_path_.c_str(), error.c_str());
+      return;
+    }
+    ROS_INFO("association: resumed %zu objects from %s; next object ID %llu", mapper->objects().size(),
+             state_path_.c_str(), static_cast<unsigned long long>(mapper->next_id()));
+  }
+  mapper_ = std::move(mapper);
+
+  objects_pub_ = nh_.advertise<dqo_map::ObjectArray>("objects", 10, /*latch=*/true);
+  markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>("object_markers", 10, /*latch=*/true);
+  events_pub_ = nh_.advertise<dqo_map::ObjectEvent>("object_events", 100);
+  kf_objects_pub_ = nh_.advertise<dqo_map::KeyFrameObjects>("keyframe_objects", 10);
+  list_srv_ = nh_.advertiseService("list_objects", &AssociationNode::on_list, this);
+  kf_sub_ = nh_.subscribe("keyframes", p_.queue_size, &AssociationNode::on_keyframe, this);
+  det_sub_ = nh_.subscribe("detections", 100, &AssociationNode::on_detections, this);
+  poses_sub_ = nh_.subscribe("keyframe_poses", 10, &AssociationNode::on_poses, this);
+  if (!p_.detections_rectified) info_sub_ = nh_.subscribe("rgb/camera_info", 1, &AssociationNode::on_camera_info, this);
+  std_msgs::Header header;
+  header.frame_id = p_.map_frame;
+  header.stamp = ros::Time::now();
+  publish(header, objects::KeyFrameAssociation());  // the resumed map, for late subscribers (latched)
+  const std::string boxes = p_.detections_rectified ? "rectified" : "raw, undistorted with " + info_sub_.getTopic();
+  ROS_INFO("association: keyframes %s, detections %s (%s); state %s", kf_sub_.getTopic().c_str(),
+           det_sub_.getTopic().c_str(), boxes.c_str(), state_path_.c_str());
+}
+
+void AssociationNode::check_time(const ros::Time& stamp, ros::Time* last, const char* stream) {
+  if (!last->isZero() && stamp < *last) {
+    ROS_WARN("association: %s time went back by %.3f s (a looping bag?): %zu keyframes and %zu detection arrays "
+             "dropped from the buffers", stream, (*last - stamp).toSec(), keyframes_.size(), detections_.size());
+    keyframes_.clear();
+    detections_.clear();
+    early_poses_.clear();
+    last_kf_stamp_ = last_det_stamp_ = newest_ = ros::Time();
+  }
+  *last = stamp;
+  if (stamp > newest_) newest_ = stamp;
+}
+
+void AssociationNode::on_keyframe(const dqo_map::KeyFrameConstPtr& kf) {
+  check_time(kf->header.stamp, &last_kf_stamp_, "keyframe");
+  keyframes_.push_back(kf);
+  match();
+}
+
+void AssociationNode::on_detections(const dqo_map::DetectionArrayConstPtr& det) {
+  check_time(det->header.stamp, &last_det_stamp_, "detection");
+  detections_[det->header.stamp] = det;
+  match();
+}
+
+void AssociationNode::on_camera_info(const sensor_msgs::CameraInfoConstPtr& info) {
+  const tracking::CameraCalibration c = to_calibration(*info);
+  if (calibration_ && *calibration_ == c) return;
+  calibration_ = c;
+  std::string error;
+  undistorter_ = tracking::Undistorter::create(c, &error);
+  if (!undistorter_) ROS_ERROR("association: cannot use camera_info (%s): %s", info_sub_.getTopic().c_str(), error.c_str());
+  match();  // keyframes may have waited for it
+}
+
+void AssociationNode::on_poses(const dqo_map::KeyFramePosesConstPtr& poses) {
+  if (poses->ids.size() != poses->poses.size()) {
+    if (!throttled("poses")) ROS_ERROR("association: keyframe_poses with %zu ids but %zu poses: skipped", poses->ids.size(), poses->poses.size());
+    return;
+  }
+  std::map<objects::KeyFrameId, SE3> by_id;
+  for (size_t i = 0; i < poses->ids.size(); ++i) by_id[poses->ids[i]] = from_pose_msg(poses->poses[i]);
+  mapper_->update_keyframe_poses(by_id);
+  for (const auto& kf : keyframes_) {
+    if (by_id.count(kf->id)) early_poses_[kf->id] = by_id[kf->id];
+  }
+}
+
+// Keyframes are processed in stamp order: the oldest waits for its detections (or expires) before
+// any newer one is processed, so the result does not depend on the detector's latency.
+void AssociationNode::match() {
+  const ros::Duration tol(p_.stamp_tolerance), keep(p_.buffer_seconds);
+  while (!keyframes_.empty()) {
+    const dqo_map::KeyFrameConstPtr kf = keyframes_.front();
+    const ros::Time t = kf->header.stamp;
+    // ros::Time cannot go below zero (it throws): clamp the window's start.
+    auto it = detections_.lower_bound(t.toSec() > tol.toSec() ? t - tol : ros::Time());
+    const bool found = it != detections_.end() && it->first <= t + tol;
+    const bool no_camera = !p_.detections_rectified && !undistorter_;
+    if (found && !no_camera) {
+      auto next = std::next(it);  // the nearer of two candidates within the tolerance
+      if (next != detections_.end() && next->first <= t + tol && (next->first - t).toSec() < (t - it->first).toSec()) it = next;
+      // Whatever a keyframe holds, the node keeps running: anything thrown skips this keyframe.
+      try {
+        process(*kf, *it->second);
+      } catch (const std::exception& e) {
+        if (!throttled("exception")) ROS_ERROR("association: keyframe %llu failed: %s: skipped",
+                                               static_cast<unsigned long long>(kf->id), e.what());
+      }
+      detections_.erase(it);
+      early_poses_.erase(kf->id);
+      keyframes_.pop_front();
+      continue;
+    }
+    if (found && !throttled("camera_info")) {
+      ROS_WARN("association: no usable camera_info on %s yet: keyframes wait (raw boxes must be undistorted; set "
+               "detections_rectified if they are not raw)", info_sub_.getTopic().c_str());
+    }
+    if (newest_ - t <= keep) break;
+    ++unmatched_keyframes_;
+    if (!throttled("unmatched_keyframe")) {
+      const std::string why = found ? "had detections but no usable camera_info arrived on " + info_sub_.getTopic()
+                                    : "got no detections on " + det_sub_.getTopic() + " within " +
+                                          std::to_string(p_.stamp_tolerance) + " s of its stamp";
+      ROS_WARN("association: keyframe %llu at %.6f %s within %.1f s: skipped (%llu so far)",
+               static_cast<unsigned long long>(kf->id), t.toSec(), why.c_str(), p_.buffer_seconds,
+               static_cast<unsigned long long>(unmatched_keyframes_));
+    }
+    early_poses_.erase(kf->id);
+    keyframes_.pop_front();
+  }
+  // Detections no keyframe can claim any more: older than the oldest waiting keyframe (keyframes
+  // come in stamp order), or than the buffer. Most are of frames that were not keyframes.
+  const ros::Time oldest_kf = keyframes_.empty() ? last_kf_stamp_ : keyframes_.front()->header.stamp;
+  while (!detections_.empty()) {
+    const ros::Time d = detections_.begin()->first;
+    if (!(d + tol < oldest_kf) && !(newest_ - d > keep)) break;
+    detections_.erase(detections_.begin());
+    ++unmatched_detections_;
+  }
+  if (unmatched_detections_ > 0 && !throttled("unmatched_detections", 30.0)) {
+    ROS_INFO("association: %llu detection arrays matched no keyframe so far (expected for frames that are not "
+             "keyframes)", static_cast<unsigned long long>(unmatched_detections_));
+  }
+}
+
+void AssociationNode::process(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det) {
+  objects::ObjectKeyFrame okf;
+  DepthImage depth;
+  InstanceImage instance;
+  std::vector<std::string> warnings;
+  std::string error;
+  const tracking::Undistorter* undistorter = p_.detections_rectified ? nullptr : &*undistorter_;
+  if (!to_object_keyframe(kf, det, undistorter, &okf, &depth, &instance, &warnings, &error)) {
+    if (!throttled("camera")) ROS_ERROR("association: %s: skipped", error.c_str());
+    return;
+  }
+  for (const std::string& w : warnings) {
+    if (!throttled(w.substr(0, 20))) ROS_WARN("association: keyframe %llu: %s", static_cast<unsigned long long>(kf.id), w.c_str());
+  }
+  const auto early = early_poses_.find(kf.id);  // corrected by bundle adjustment while it waited
+  if (early != early_poses_.end()) okf.T_wc = early->second;
+  error.clear();
+  const objects::KeyFrameAssociation result = mapper_->process_keyframe(okf, &error);
+  if (!error.empty()) {
+    if (!throttled("process")) ROS_ERROR("association: keyframe %llu: %s: skipped", static_cast<unsigned long long>(kf.id), error.c_str());
+    return;
+  }
+  // One line per kind of unusable input (throttled apart, so one kind does not hide the other).
+  int invalid = 0, over_limit = 0;
+  for (const DetectionVerdict v : result.verdicts) {
+    invalid += v == DetectionVerdict::kInvalid;
+    over_limit += v == DetectionVerdict::kOverLimit;
+  }
+  const auto kf_id = static_cast<unsigned long long>(kf.id);
+  if (invalid > 0 && !throttled("invalid_boxes")) {
+    ROS_WARN("association: keyframe %llu: %d of %zu detections rejected as unusable (NaN, empty or negative "
+             "size, or outside the %dx%d image)", kf_id, invalid, result.verdicts.size(), okf.camera.width,
+             okf.camera.height);
+  }
+  if (over_limit > 0 && !throttled("over_limit")) {
+    ROS_WARN("association: keyframe %llu: %zu detections, %d beyond the per-keyframe limit "
+             "(objects/filter/max_detections) dropped", kf_id, result.verdicts.size(), over_limit);
+  }
+  std_msgs::Header header;
+  header.stamp = kf.header.stamp;
+  header.frame_id = p_.map_frame;
+  publish(header, result);
+  InstanceImage renumbered;
+  if (!instance.empty()) renumbered = renumber_instance(instance, result.filtered_source);
+  std_msgs::Header image_header = header;
+  image_header.frame_id = kf.camera_info.header.frame_id;
+  kf_objects_pub_.publish(to_keyframe_objects_msg(result, image_header, renumbered));
+
+  bool changed = !result.events.empty();
+  for (const auto id : result.object_ids) changed = changed || id != 0;
+  if (changed && !mapper_->save_state(state_path_, &error) && !throttled("save")) {
+    ROS_ERROR("association: cannot write the object state %s: %s", state_path_.c_str(), error.c_str());
+  }
+  ROS_DEBUG("association: keyframe %llu: %zu detections, %zu kept, %zu events, %.1f + %.1f ms",
+            static_cast<unsigned long long>(kf.id), result.verdicts.size(), result.filtered.size(),
+            result.events.size(), result.association_ms, result.refinement_ms);
+}
+
+void AssociationNode::publish(const std_msgs::Header& header, const objects::KeyFrameAssociation& result) {
+  std::vector<objects::ObjectId> deleted;
+  for (const objects::ObjectEvent& e : result.events) {
+    events_pub_.publish(to_event_msg(e, header));
+    if (e.type != objects::ObjectEvent::Type::kCreated) deleted.push_back(e.id);
+  }
+  const std::vector<objects::MapObject> confirmed = mapper_->objects();
+  dqo_map::ObjectArray array;
+  array.header = header;
+  for (const auto& o : confirmed) array.objects.push_back(to_object_msg(o));
+  objects_pub_.publish(array);
+  markers_pub_.publish(to_marker_array(confirmed, deleted, header));
+  if (!p_.publish_tf) return;
+  for (const auto& o : array.objects) {
+    geometry_msgs::TransformStamped t;
+    t.header = header;
+    t.child_frame_id = "object_" + std::to_string(o.id);
+    t.transform = to_transform_msg(from_pose_msg(o.pose));
+    tf_broadcaster_.sendTransform(t);
+  }
+}
+
+bool AssociationNode::on_list(dqo_map::ListObjects::Request& req, dqo_map::ListObjects::Response& res) {
+  for (const auto& o : mapper_->objects()) {
+    if (req.class_name.empty() || o.class_name == req.class_name) res.objects.push_back(to_object_msg(o));
+  }
+  return true;
+}
+
+}  // namespace
+}  // namespace dqo::ros_bridge
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "association");
+  dqo::ros_bridge::AssociationNode node(ros::NodeHandle(), ros::NodeHandle("~"));
+  if (!node.ok()) return 1;
+  ros::spin();
+  return 0;
+}

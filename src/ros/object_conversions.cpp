@@ -1,0 +1,307 @@
+#include "object_conversions.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include <sensor_msgs/image_encodings.h>
+
+#include "conversions.h"
+
+namespace dqo::ros_bridge {
+
+dqo_map::Object to_object_msg(const objects::MapObject& object) {
+  dqo_map::Object msg;
+  msg.id = object.id;
+  msg.class_id = object.class_id;
+  msg.class_name = object.class_name;
+  const DualQuadric& q = object.quadric;
+  msg.pose = to_pose_msg(SE3::from_rotation_translation(q.rotation(), q.centre()));
+  msg.semi_axes.x = q.semi_axes().x();
+  msg.semi_axes.y = q.semi_axes().y();
+  msg.semi_axes.z = q.semi_axes().z();
+  const Eigen::Matrix4d Q = q.matrix();
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) msg.dual_quadric[4 * r + c] = Q(r, c);
+  }
+  // observation_count also counts observations from before a restart and of merged pieces.
+  msg.observations = static_cast<uint32_t>(std::max<size_t>(object.observation_count, object.observations.size()));
+  msg.confidence = static_cast<float>(object.confidence);
+  msg.num_gaussians = 0;
+  return msg;
+}
+
+dqo_map::ObjectEvent to_event_msg(const objects::ObjectEvent& event, const std_msgs::Header& header) {
+  dqo_map::ObjectEvent msg;
+  msg.header = header;
+  switch (event.type) {
+    case objects::ObjectEvent::Type::kCreated: msg.type = dqo_map::ObjectEvent::CREATED; break;
+    case objects::ObjectEvent::Type::kMerged: msg.type = dqo_map::ObjectEvent::MERGED; break;
+    case objects::ObjectEvent::Type::kRemoved: msg.type = dqo_map::ObjectEvent::REMOVED; break;
+  }
+  msg.id = event.id;
+  msg.into_id = event.type == objects::ObjectEvent::Type::kMerged ? event.into_id : 0;
+  return msg;
+}
+
+std::vector<Detection2d> from_detection_array_msg(const dqo_map::DetectionArray& msg) {
+  std::vector<Detection2d> out;
+  out.reserve(msg.detections.size());
+  for (const auto& d : msg.detections) {
+    Detection2d det;
+    det.class_id = d.class_id;
+    det.class_name = d.class_name;
+    det.score = d.score;
+    det.box = Box2d{d.x_min, d.y_min, d.x_max, d.y_max};
+    out.push_back(det);
+  }
+  return out;
+}
+
+bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, std::string* error) {
+  namespace enc = sensor_msgs::image_encodings;
+  int bytes = 0;
+  bool colour = false, bgr = false;
+  if (msg.encoding == enc::MONO8 || msg.encoding == enc::TYPE_8UC1) {
+    bytes = 1;
+  } else if (msg.encoding == enc::MONO16 || msg.encoding == enc::TYPE_16UC1) {
+    bytes = 2;
+  } else if (msg.encoding == enc::RGB8 || msg.encoding == enc::BGR8) {
+    bytes = 3, colour = true, bgr = msg.encoding == enc::BGR8;
+  } else {
+    if (error) *error = "instance image encoding '" + msg.encoding + "' is not supported (mono8, mono16, rgb8, bgr8)";
+    return false;
+  }
+  const size_t row = static_cast<size_t>(msg.width) * bytes;
+  if (msg.width == 0 || msg.height == 0 || msg.step < row ||
+      msg.data.size() < static_cast<size_t>(msg.step) * (msg.height - 1) + row) {
+    if (error) {
+      *error = "instance image " + std::to_string(msg.width) + "x" + std::to_string(msg.height) + " (" +
+               msg.encoding + ", step " + std::to_string(msg.step) + ") holds " +
+               std::to_string(msg.data.size()) + " bytes: malformed";
+    }
+    return false;
+  }
+  *labels = objects::LabelImage(static_cast<int>(msg.width), static_cast<int>(msg.height), 1, 0);
+  uint32_t* out = labels->data.data();
+  for (uint32_t y = 0; y < msg.height; ++y) {
+    const uint8_t* in = msg.data.data() + static_cast<size_t>(y) * msg.step;
+    for (uint32_t x = 0; x < msg.width; ++x, in += bytes, ++out) {
+      if (bytes == 1) {
+        *out = in[0];
+      } else if (bytes == 2) {
+        *out = msg.is_bigendian ? (uint32_t(in[0]) << 8 | in[1]) : (uint32_t(in[1]) << 8 | in[0]);
+      } else if (colour) {
+        *out = bgr ? objects::pack_rgb(in[2], in[1], in[0]) : objects::pack_rgb(in[0], in[1], in[2]);
+      }
+    }
+  }
+  return true;
+}
+
+sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header) {
+  sensor_msgs::Image msg;
+  msg.header = header;
+  msg.width = image.width;
+  msg.height = image.height;
+  msg.encoding = sensor_msgs::image_encodings::MONO16;
+  msg.is_bigendian = 0;
+  msg.step = image.width * 2;
+  msg.data.resize(static_cast<size_t>(msg.step) * image.height);
+  if (!image.data.empty()) std::memcpy(msg.data.data(), image.data.data(), msg.data.size());  // little-endian host
+  return msg;
+}
+
+InstanceImage renumber_instance(const InstanceImage& input, const std::vector<int>& filtered_source) {
+  // lookup[k + 1] = j + 1 for the filtered detection j whose source is input detection k.
+  int max_source = -1;
+  for (const int s : filtered_source) max_source = std::max(max_source, s);
+  std::vector<uint16_t> lookup(static_cast<size_t>(std::max(0, max_source + 2)), 0);
+  for (size_t j = 0; j < filtered_source.size(); ++j) {
+    if (filtered_source[j] >= 0 && j + 1 <= 0xffff) lookup[filtered_source[j] + 1] = static_cast<uint16_t>(j + 1);
+  }
+  InstanceImage out(input.width, input.height, 1, 0);
+  for (size_t i = 0; i < input.data.size() && i < out.data.size(); ++i) {
+    const uint16_t v = input.data[i];
+    out.data[i] = v < lookup.size() ? lookup[v] : 0;
+  }
+  return out;
+}
+
+Box2d rectify_box(const Box2d& raw, const tracking::Undistorter& undistorter) {
+  if (!std::isfinite(raw.x_min) || !std::isfinite(raw.y_min) || !std::isfinite(raw.x_max) ||
+      !std::isfinite(raw.y_max) || undistorter.is_identity()) {
+    return raw;
+  }
+  constexpr int kSamples = 8;  // per edge: enough for the bend of a wide-angle lens over one box
+  Box2d out{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  auto add = [&](double u, double v) {
+    const Eigen::Vector2d p = undistorter.rectify_point({u, v});
+    out.x_min = std::min(out.x_min, p.x()), out.x_max = std::max(out.x_max, p.x());
+    out.y_min = std::min(out.y_min, p.y()), out.y_max = std::max(out.y_max, p.y());
+  };
+  for (int i = 0; i <= kSamples; ++i) {
+    const double s = static_cast<double>(i) / kSamples;
+    const double u = raw.x_min + s * (raw.x_max - raw.x_min);
+    const double v = raw.y_min + s * (raw.y_max - raw.y_min);
+    add(u, raw.y_min), add(u, raw.y_max), add(raw.x_min, v), add(raw.x_max, v);
+  }
+  return out;
+}
+
+bool rectify_instance(const InstanceImage& raw, const tracking::Undistorter& undistorter,
+                      InstanceImage* rectified, std::string* error) {
+  // The depth remap is nearest-neighbour with 0 outside: exactly what labels need. uint16 values
+  // are exact in float.
+  DepthImage as_float(raw.width, raw.height, 1);
+  for (size_t i = 0; i < raw.data.size() && i < as_float.data.size(); ++i) as_float.data[i] = raw.data[i];
+  DepthImage out;
+  if (raw.channels != 1 || !undistorter.rectify_depth(as_float, &out, error)) {
+    if (error && raw.channels != 1) *error = "instance image must have one channel";
+    return false;
+  }
+  *rectified = InstanceImage(out.width, out.height, 1, 0);
+  for (size_t i = 0; i < out.data.size(); ++i) rectified->data[i] = static_cast<uint16_t>(out.data[i]);
+  return true;
+}
+
+bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& detections,
+                        const tracking::Undistorter* undistorter, objects::ObjectKeyFrame* out,
+                        DepthImage* depth, InstanceImage* instance, std::vector<std::string>* warnings,
+                        std::string* error) {
+  const auto& K = kf.camera_info.K;
+  const PinholeCamera camera{K[0], K[4], K[2], K[5], static_cast<int>(kf.camera_info.width),
+                             static_cast<int>(kf.camera_info.height)};
+  if (!(std::isfinite(K[2]) && std::isfinite(K[5]) && K[0] > 0.0 && K[4] > 0.0 && std::isfinite(K[0]) &&
+        std::isfinite(K[4])) || camera.width <= 0 || camera.height <= 0) {
+    if (error) *error = "keyframe " + std::to_string(kf.id) + " has no usable camera_info (K and size)";
+    return false;
+  }
+  out->id = kf.id;
+  out->stamp = kf.header.stamp.toSec();
+  out->camera = camera;
+  out->T_wc = from_pose_msg(kf.pose);
+  out->depth = DepthView{};
+  std::string why;
+  if (!from_depth_msg(kf.depth, depth, &why)) {
+    warnings->push_back(why + ": used without depth (no single-view initialisation)");
+  } else if (!depth->same_size(camera.width, camera.height)) {
+    warnings->push_back("depth is " + std::to_string(depth->width) + "x" + std::to_string(depth->height) +
+                        ", the camera " + std::to_string(camera.width) + "x" + std::to_string(camera.height) +
+                        ": used without depth");
+  } else {
+    out->depth = DepthView{depth->data.data(), depth->width, depth->height};
+  }
+  out->detections = from_detection_array_msg(detections);
+  if (undistorter) {
+    for (Detection2d& d : out->detections) d.box = rectify_box(d.box, *undistorter);
+  }
+  *instance = InstanceImage();
+  if (detections.instance.width == 0 || detections.instance.height == 0) return true;
+  objects::LabelImage labels;
+  if (!from_label_msg(detections.instance, &labels, &why)) {
+    warnings->push_back(why + ": detections used without their instance image");
+    return true;
+  }
+  InstanceImage raw(labels.width, labels.height, 1, 0);
+  for (size_t i = 0; i < labels.data.size(); ++i) raw.data[i] = static_cast<uint16_t>(std::min<uint32_t>(labels.data[i], 0xffff));
+  if (!raw.same_size(camera.width, camera.height)) {
+    warnings->push_back("instance image is " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
+                        ", the camera " + std::to_string(camera.width) + "x" + std::to_string(camera.height) +
+                        ": detections used without it");
+  } else if (undistorter && !rectify_instance(raw, *undistorter, instance, &why)) {
+    warnings->push_back(why + ": detections used without their instance image");
+  } else if (!undistorter) {
+    *instance = std::move(raw);
+  }
+  return true;
+}
+
+dqo_map::KeyFrameObjects to_keyframe_objects_msg(const objects::KeyFrameAssociation& association,
+                                                 const std_msgs::Header& header,
+                                                 const InstanceImage& instance) {
+  dqo_map::KeyFrameObjects msg;
+  msg.header = header;
+  msg.keyframe_id = association.keyframe_id;
+  msg.detections = to_detection_array_msg(association.filtered, header);
+  msg.object_ids.assign(association.filtered_object_ids.begin(), association.filtered_object_ids.end());
+  // The two arrays must stay parallel even if the core handed back a shorter ID list.
+  msg.object_ids.resize(msg.detections.detections.size(), 0);
+  if (!instance.empty()) msg.detections.instance = to_mono16_msg(instance, header);
+  return msg;
+}
+
+std_msgs::ColorRGBA colour_of_id(objects::ObjectId id) {
+  // Golden-ratio steps in hue keep consecutive IDs far apart; full saturation, bright value.
+  const double h = std::fmod(static_cast<double>(id % 100000) * 0.618033988749895, 1.0) * 6.0;
+  const double f = h - std::floor(h);
+  const double v = 0.95, s = 0.8;
+  const double p = v * (1 - s), q = v * (1 - s * f), t = v * (1 - s * (1 - f));
+  double r = v, g = t, b = p;
+  switch (static_cast<int>(h) % 6) {
+    case 0: r = v, g = t, b = p; break;
+    case 1: r = q, g = v, b = p; break;
+    case 2: r = p, g = v, b = t; break;
+    case 3: r = p, g = q, b = v; break;
+    case 4: r = t, g = p, b = v; break;
+    default: r = v, g = p, b = q; break;
+  }
+  std_msgs::ColorRGBA c;
+  c.r = static_cast<float>(r);
+  c.g = static_cast<float>(g);
+  c.b = static_cast<float>(b);
+  c.a = 1.0f;
+  return c;
+}
+
+visualization_msgs::MarkerArray to_marker_array(const std::vector<objects::MapObject>& objects,
+                                                const std::vector<objects::ObjectId>& deleted,
+                                                const std_msgs::Header& header) {
+  visualization_msgs::MarkerArray out;
+  for (const objects::MapObject& o : objects) {
+    if (!o.has_quadric) continue;
+    const dqo_map::Object obj = to_object_msg(o);
+    visualization_msgs::Marker m;
+    m.header = header;
+    m.ns = "ellipsoids";
+    m.id = static_cast<int32_t>(o.id);
+    m.type = visualization_msgs::Marker::SPHERE;
+    m.action = visualization_msgs::Marker::ADD;
+    m.pose = obj.pose;
+    // A SPHERE marker's scale is its diameter along each of its pose's axes.
+    m.scale.x = 2.0 * obj.semi_axes.x;
+    m.scale.y = 2.0 * obj.semi_axes.y;
+    m.scale.z = 2.0 * obj.semi_axes.z;
+    m.color = colour_of_id(o.id);
+    m.color.a = 0.5f;  // see-through, so the Gaussians / point cloud inside stay visible
+    out.markers.push_back(m);
+
+    visualization_msgs::Marker t;
+    t.header = header;
+    t.ns = "labels";
+    t.id = m.id;
+    t.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
+    t.action = visualization_msgs::Marker::ADD;
+    t.pose.orientation.w = 1.0;
+    t.pose.position = obj.pose.position;
+    // Above the ellipsoid whatever its orientation: the largest semi-axis bounds its extent.
+    t.pose.position.z += o.quadric.semi_axes().maxCoeff() + 0.05;
+    t.scale.z = 0.08;  // text height, metres
+    t.color = colour_of_id(o.id);
+    t.text = std::to_string(o.id) + " " + o.class_name;
+    out.markers.push_back(t);
+  }
+  for (const objects::ObjectId id : deleted) {
+    for (const char* ns : {"ellipsoids", "labels"}) {
+      visualization_msgs::Marker d;
+      d.header = header;
+      d.ns = ns;
+      d.id = static_cast<int32_t>(id);
+      d.action = visualization_msgs::Marker::DELETE;
+      out.markers.push_back(d);
+    }
+  }
+  return out;
+}
+
+}  // namespace dqo::ros_bridge

@@ -1,0 +1,80 @@
+#pragma once
+// Conversions between the object stage's value types (include/dqo_map/objects) and ROS messages:
+// objects, events, detections, KeyFrameObjects, instance images and rviz markers. Field copies and
+// relabelling only; the object maths lives in the core. Private to src/ros.
+
+#include <string>
+#include <vector>
+
+#include <dqo_map/DetectionArray.h>
+#include <dqo_map/KeyFrame.h>
+#include <dqo_map/KeyFrameObjects.h>
+#include <dqo_map/Object.h>
+#include <dqo_map/ObjectEvent.h>
+#include <sensor_msgs/Image.h>
+#include <std_msgs/Header.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include "dqo_map/objects/mask_detections.h"
+#include "dqo_map/objects/object_types.h"
+#include "dqo_map/tracking/undistortion.h"
+
+namespace dqo::ros_bridge {
+
+// Pose = the quadric's centre and rotation (columns = the semi-axes' directions), semi_axes in that
+// order, dual_quadric = Q* normalised to Q*(3,3) = -1, row-major. num_gaussians stays 0: the
+// mapping nodelet owns the Gaussians.
+dqo_map::Object to_object_msg(const objects::MapObject& object);
+dqo_map::ObjectEvent to_event_msg(const objects::ObjectEvent& event, const std_msgs::Header& header);
+
+// Field copies; NaN or inverted boxes pass through unchanged (the core's filter gives the verdict).
+std::vector<Detection2d> from_detection_array_msg(const dqo_map::DetectionArray& msg);
+
+// An instance / label image message as integer labels: mono8 / 8UC1 and mono16 / 16UC1 give the
+// value, rgb8 / bgr8 the colour packed as objects::pack_rgb(r, g, b). False and *error (naming the
+// encoding and those accepted) otherwise, or when the size fields disagree with the data.
+bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, std::string* error);
+sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header);
+
+// A DetectionArray's instance image (value k+1 = input detection k) renumbered for the filtered
+// detections (value j+1 = filtered detection j, whose input index is filtered_source[j]); pixels of
+// detections that did not pass become 0, as do values beyond the input's detection count.
+InstanceImage renumber_instance(const InstanceImage& input, const std::vector<int>& filtered_source);
+
+// A raw detection box in the rectified image: the box around its boundary mapped through the
+// undistortion (sampled along each edge, since straight edges bend). Boxes that are not finite
+// pass through unchanged for the core's filter to reject.
+Box2d rectify_box(const Box2d& raw, const tracking::Undistorter& undistorter);
+// A raw instance image (detection index + 1) in the rectified image, by nearest neighbour (labels
+// must never blend); false and *error when its size is not the camera's.
+bool rectify_instance(const InstanceImage& raw, const tracking::Undistorter& undistorter,
+                      InstanceImage* rectified, std::string* error);
+
+// The mapper's input from a KeyFrame and its DetectionArray: the rectified pinhole camera from the
+// keyframe's camera_info, T_wc from its pose, the depth as metres in *depth (the returned view
+// points into it), the boxes through `undistorter` (nullptr: they are rectified already), and the
+// instance image (detection index + 1), rectified the same way, in *instance (empty when absent).
+// A depth or instance image that cannot be used leaves the keyframe usable without it, with a line
+// in *warnings; false and *error only when the camera_info is unusable.
+bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& detections,
+                        const tracking::Undistorter* undistorter, objects::ObjectKeyFrame* out,
+                        DepthImage* depth, InstanceImage* instance, std::vector<std::string>* warnings,
+                        std::string* error);
+
+// KeyFrameObjects of one processed keyframe: the filtered detections (rectified pixels) and,
+// parallel to them, the object IDs. `instance` (already rectified and renumbered) is attached when
+// it is not empty.
+dqo_map::KeyFrameObjects to_keyframe_objects_msg(const objects::KeyFrameAssociation& association,
+                                                 const std_msgs::Header& header,
+                                                 const InstanceImage& instance);
+
+// rviz markers: per object an oriented SPHERE scaled to 2x the semi-axes (namespace "ellipsoids")
+// and a TEXT_VIEW_FACING label "id class" above it ("labels"), marker id = object id, one colour
+// per ID; DELETE of both markers for every ID in `deleted` (merged or removed objects).
+visualization_msgs::MarkerArray to_marker_array(const std::vector<objects::MapObject>& objects,
+                                                const std::vector<objects::ObjectId>& deleted,
+                                                const std_msgs::Header& header);
+// A stable, well-spread colour per ID (golden-ratio hue steps), components in [0, 1].
+std_msgs::ColorRGBA colour_of_id(objects::ObjectId id);
+
+}  // namespace dqo::ros_bridge

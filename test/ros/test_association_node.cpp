@@ -1,0 +1,633 @@
+// rostest of association_node (test/ros/association.test): renders a synthetic bag with detections
+// and ground-truth tf (tabletop, by default 40 frames every 5th, the scene's sensor and detector
+// noise on: misses, false positives, class confusions, box jitter), plays it into tracking_node (poses from
+// tf) and association_node frame by frame (each frame waits for its keyframe_objects, so nothing is
+// dropped on a slow machine; the mapper's result depends only on the keyframe sequence, so the run
+// is deterministic), and checks against the scene's ground truth:
+//   - the confirmed objects are as many as the scene's objects, one per ground-truth object (same
+//     class, centre within half the box's largest extent);
+//   - IDs are stable: an ID, once published, stays in every later ObjectArray and keeps meaning the
+//     same ground-truth object; no ID is created twice or comes back after it went;
+//   - object_markers hold an ellipsoid and a label per object, tf a frame object_<id> at its pose;
+//     keyframe_objects' arrays are parallel, name only known objects and never one object twice;
+//     list_objects (with and without a class filter) returns the published objects; the state file
+//     holds them and the next ID;
+//   - bad input (NaN, negative and off-image boxes, a thousand detections, detections without a
+//     keyframe, a keyframe without detections, an unsupported depth encoding, time going back) is
+//     logged and skipped, and the node still answers list_objects with the same objects.
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <rosgraph_msgs/Clock.h>
+#include <rosgraph_msgs/Log.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <tf2_msgs/TFMessage.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <dqo_map/DetectionArray.h>
+#include <dqo_map/KeyFrame.h>
+#include <dqo_map/KeyFrameObjects.h>
+#include <dqo_map/ListObjects.h>
+#include <dqo_map/ObjectArray.h>
+#include <dqo_map/ObjectEvent.h>
+
+#include "dqo_map/objects/object_mapper.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Capture {
+  ros::Time stamp;
+  sensor_msgs::Image rgb, depth;
+  sensor_msgs::CameraInfo info;
+  tf2_msgs::TFMessage tf;  // ground truth map -> camera_base
+  dqo_map::DetectionArray detections;
+};
+
+struct GtObject {
+  uint64_t id = 0;
+  int class_id = 0;
+  Eigen::Vector3d centre;
+  double max_half_extent = 0.0;
+};
+
+std::vector<GtObject> read_gt(const fs::path& path) {
+  std::vector<GtObject> out;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream s(line);
+    GtObject o;
+    double q[4], h[3];
+    s >> o.id >> o.class_id >> o.centre.x() >> o.centre.y() >> o.centre.z() >> q[0] >> q[1] >> q[2] >> q[3] >> h[0] >>
+        h[1] >> h[2];
+    if (!s) continue;
+    o.max_half_extent = std::max({h[0], h[1], h[2]});
+    out.push_back(o);
+  }
+  return out;
+}
+
+Eigen::Vector3d centre_of(const dqo_map::Object& o) {
+  return {o.pose.position.x, o.pose.position.y, o.pose.position.z};
+}
+
+// What the test hears from the nodes (callbacks run on an AsyncSpinner's thread).
+struct Recorder {
+  std::mutex mutex;
+  std::map<double, dqo_map::KeyFrame> keyframes;      // by stamp
+  std::map<double, dqo_map::KeyFrameObjects> kf_objects;  // by stamp
+  std::vector<dqo_map::ObjectArray> arrays;
+  std::vector<dqo_map::ObjectEvent> events;
+  std::vector<visualization_msgs::MarkerArray> markers;
+  std::vector<std::string> logs;
+  std::map<std::string, geometry_msgs::TransformStamped> object_frames;  // map -> object_<id>, latest
+
+  void on_keyframe(const dqo_map::KeyFrame::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    keyframes[m->header.stamp.toSec()] = *m;
+  }
+  void on_kf_objects(const dqo_map::KeyFrameObjects::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    kf_objects[m->header.stamp.toSec()] = *m;
+  }
+  void on_objects(const dqo_map::ObjectArray::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    arrays.push_back(*m);
+  }
+  void on_event(const dqo_map::ObjectEvent::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    events.push_back(*m);
+  }
+  void on_markers(const visualization_msgs::MarkerArray::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    markers.push_back(*m);
+  }
+  void on_tf(const tf2_msgs::TFMessage::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& t : m->transforms) {
+      if (t.child_frame_id.rfind("object_", 0) == 0) object_frames[t.child_frame_id] = t;
+    }
+  }
+  void on_log(const rosgraph_msgs::Log::ConstPtr& log) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (log->name.find("association") != std::string::npos) logs.push_back(log->msg);
+    if (log->name.find("tracking") != std::string::npos && log->level >= rosgraph_msgs::Log::WARN) {
+      std::printf("[ INFO     ] tracking_node said: %s\n", log->msg.c_str());
+    }
+  }
+  bool has_kf_objects(const ros::Time& t) {
+    std::lock_guard<std::mutex> lock(mutex);
+    return kf_objects.count(t.toSec()) > 0;
+  }
+  bool has_keyframe(const ros::Time& t) {
+    std::lock_guard<std::mutex> lock(mutex);
+    return keyframes.count(t.toSec()) > 0;
+  }
+  bool logged(const std::string& needle) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& m : logs) {
+      if (m.find(needle) != std::string::npos) return true;
+    }
+    return false;
+  }
+};
+
+template <typename Pred>
+bool wait_for(Pred pred, double seconds) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+  while (ros::ok() && ros::WallTime::now() < end) {
+    if (pred()) return true;
+    ros::WallDuration(0.005).sleep();
+  }
+  return pred();
+}
+
+class AssociationNodeTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("dqo_association_test_" + std::to_string(getpid()));
+    fs::create_directories(dir_);
+    // By default (association.test) 40 frames, every 5th of the 300-frame orbit: 240 degrees around
+    // the table, every object seen from many sides.
+    ros::NodeHandle pnh("~");
+    pnh.param("frames", frames_, 40);
+    pnh.param("every", every_, 5);
+    const std::string cmd = std::string(DQO_MAKE_SCENE) + " " + DQO_SOURCE_DIR + "/config/scenes/tabletop.yaml " +
+                            (dir_ / "data").string() + " --bag " + (dir_ / "tabletop.bag").string() + " --frames " +
+                            std::to_string(frames_) + " --every " + std::to_string(every_) + " --gt-tf --overwrite > " +
+                            (dir_ / "make_scene.log").string() + " 2>&1";
+    make_scene_rc_ = std::system(cmd.c_str());
+  }
+  static void TearDownTestSuite() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+
+  void SetUp() override {
+    ASSERT_EQ(make_scene_rc_, 0) << "dqo_make_scene failed; see " << (dir_ / "make_scene.log");
+    rosbag::Bag bag((dir_ / "tabletop.bag").string(), rosbag::bagmode::Read);
+    std::map<ros::Time, Capture> by_stamp;
+    for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
+      if (m.getTopic() == "/tf_static") {
+        tf_static_ = *m.instantiate<tf2_msgs::TFMessage>();
+      } else if (m.getTopic() == "/tf") {
+        auto tf = m.instantiate<tf2_msgs::TFMessage>();
+        by_stamp[tf->transforms.at(0).header.stamp].tf = *tf;
+      } else if (m.getTopic() == "/rgb/image_raw") {
+        auto img = m.instantiate<sensor_msgs::Image>();
+        by_stamp[img->header.stamp].rgb = *img;
+        by_stamp[img->header.stamp].stamp = img->header.stamp;
+      } else if (m.getTopic() == "/depth_to_rgb/image_raw") {
+        auto img = m.instantiate<sensor_msgs::Image>();
+        by_stamp[img->header.stamp].depth = *img;
+      } else if (m.getTopic() == "/rgb/camera_info") {
+        auto info = m.instantiate<sensor_msgs::CameraInfo>();
+        by_stamp[info->header.stamp].info = *info;
+      } else if (m.getTopic() == "/detections") {
+        auto det = m.instantiate<dqo_map::DetectionArray>();
+        by_stamp[det->header.stamp].detections = *det;
+      }
+    }
+    for (auto& [stamp, c] : by_stamp) captures_.push_back(c);
+    ASSERT_EQ(captures_.size(), static_cast<size_t>(frames_));
+    for (const auto& c : captures_) ASSERT_FALSE(c.tf.transforms.empty()) << "the bag has no ground-truth tf";
+    gt_ = read_gt(dir_ / "data" / "objects_gt.txt");
+    ASSERT_EQ(gt_.size(), 4u) << "tabletop has four objects";
+
+    ros::NodeHandle nh, pnh("~");
+    pnh.param<std::string>("state_dir", state_dir_, "");
+    kf_sub_ = nh.subscribe("/dqo_map/keyframes", 100, &Recorder::on_keyframe, &rec_);
+    kfo_sub_ = nh.subscribe("/dqo_map/keyframe_objects", 100, &Recorder::on_kf_objects, &rec_);
+    objects_sub_ = nh.subscribe("/dqo_map/objects", 100, &Recorder::on_objects, &rec_);
+    events_sub_ = nh.subscribe("/dqo_map/object_events", 1000, &Recorder::on_event, &rec_);
+    markers_sub_ = nh.subscribe("/dqo_map/object_markers", 100, &Recorder::on_markers, &rec_);
+    log_sub_ = nh.subscribe("/rosout", 1000, &Recorder::on_log, &rec_);
+    tf_sub_ = nh.subscribe("/tf", 1000, &Recorder::on_tf, &rec_);
+    clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10, true);
+    tf_static_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf_static", 10, true);
+    tf_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf", 100);
+    rgb_pub_ = nh.advertise<sensor_msgs::Image>("/rgb/image_raw", 10);
+    depth_pub_ = nh.advertise<sensor_msgs::Image>("/depth_to_rgb/image_raw", 10);
+    info_pub_ = nh.advertise<sensor_msgs::CameraInfo>("/rgb/camera_info", 10);
+    det_pub_ = nh.advertise<dqo_map::DetectionArray>("/detections", 1100);
+    kf_pub_ = nh.advertise<dqo_map::KeyFrame>("/dqo_map/keyframes", 10);
+    spinner_ = std::make_unique<ros::AsyncSpinner>(2);
+    spinner_->start();
+    ASSERT_TRUE(wait_for(
+        [&] {
+          return rgb_pub_.getNumSubscribers() > 0 && depth_pub_.getNumSubscribers() > 0 &&
+                 info_pub_.getNumSubscribers() >= 2 && det_pub_.getNumSubscribers() > 0 &&
+                 kf_pub_.getNumSubscribers() > 0 && tf_pub_.getNumSubscribers() > 0 &&
+                 kfo_sub_.getNumPublishers() > 0 && objects_sub_.getNumPublishers() > 0 &&
+                 log_sub_.getNumPublishers() > 0;
+        },
+        60.0))
+        << "tracking_node and association_node did not connect";
+    ASSERT_TRUE(ros::service::waitForService("/dqo_map/list_objects", 30000));
+  }
+
+  void TearDown() override {
+    if (spinner_) spinner_->stop();
+    std::error_code ec;
+    if (!state_dir_.empty()) fs::remove_all(state_dir_, ec);  // the launch file's fresh state folder
+  }
+
+  void set_clock(const ros::Time& t) {
+    rosgraph_msgs::Clock c;
+    c.clock = t;
+    clock_pub_.publish(c);
+  }
+
+  // One capture as the bag holds it; returns once association_node has published its
+  // keyframe_objects (every frame is a keyframe in this test: see association.test), or after
+  // wait_s: tracking_node's synchroniser may hold a frame back until the next one arrives.
+  bool play(const Capture& c, bool with_static, double wait_s) {
+    set_clock(c.stamp);
+    if (with_static) {
+      tf2_msgs::TFMessage s = tf_static_;
+      for (auto& t : s.transforms) t.header.stamp = c.stamp;
+      tf_static_pub_.publish(s);
+      ros::WallDuration(0.2).sleep();  // rosbag play, too, sends it ahead of the images
+    }
+    tf_pub_.publish(c.tf);
+    det_pub_.publish(c.detections);
+    info_pub_.publish(c.info);
+    depth_pub_.publish(c.depth);
+    rgb_pub_.publish(c.rgb);
+    return wait_for([&] { return rec_.has_kf_objects(c.stamp); }, wait_s);
+  }
+
+  // The last capture again, later: releases whatever the synchroniser still holds. Waits for its
+  // own result too, so that no keyframe of the bag arrives after the stamps that follow it.
+  void drain() {
+    Capture c = captures_.back();
+    c.stamp += ros::Duration(0.1);
+    for (auto& t : c.tf.transforms) t.header.stamp = c.stamp;
+    c.rgb.header.stamp = c.depth.header.stamp = c.info.header.stamp = c.detections.header.stamp = c.stamp;
+    play(c, false, 15.0);
+  }
+
+  std::vector<dqo_map::Object> list(const std::string& class_name, bool* ok) {
+    dqo_map::ListObjects srv;
+    srv.request.class_name = class_name;
+    *ok = ros::service::call("/dqo_map/list_objects", srv);
+    return srv.response.objects;
+  }
+
+  // The nearest ground-truth object to a centre.
+  const GtObject& nearest_gt(const Eigen::Vector3d& c) const {
+    size_t best = 0;
+    for (size_t i = 1; i < gt_.size(); ++i) {
+      if ((gt_[i].centre - c).norm() < (gt_[best].centre - c).norm()) best = i;
+    }
+    return gt_[best];
+  }
+
+  static fs::path dir_;
+  static int make_scene_rc_, frames_, every_;
+  std::vector<Capture> captures_;
+  std::vector<GtObject> gt_;
+  tf2_msgs::TFMessage tf_static_;
+  std::string state_dir_;
+  Recorder rec_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
+  ros::Subscriber kf_sub_, kfo_sub_, objects_sub_, events_sub_, markers_sub_, log_sub_, tf_sub_;
+  ros::Publisher clock_pub_, tf_static_pub_, tf_pub_, rgb_pub_, depth_pub_, info_pub_, det_pub_, kf_pub_;
+};
+
+fs::path AssociationNodeTest::dir_;
+int AssociationNodeTest::make_scene_rc_ = -1;
+int AssociationNodeTest::frames_ = 0;
+int AssociationNodeTest::every_ = 0;
+
+TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
+  // ---- the bag, in order
+  for (size_t i = 0; i < captures_.size(); ++i) play(captures_[i], i == 0, 10.0);
+  drain();
+  auto all_processed = [&] {
+    for (const auto& c : captures_) {
+      if (!rec_.has_kf_objects(c.stamp)) return false;
+    }
+    return true;
+  };
+  if (!wait_for(all_processed, 60.0)) {
+    for (size_t i = 0; i < captures_.size(); ++i) {
+      if (rec_.has_kf_objects(captures_[i].stamp)) continue;
+      ADD_FAILURE() << "frame " << i << " at " << captures_[i].stamp << ": no keyframe_objects; "
+                    << (rec_.has_keyframe(captures_[i].stamp) ? "tracking_node published its keyframe"
+                                                              : "tracking_node published no keyframe");
+    }
+  }
+
+  // Topics are not ordered among each other: let the objects, markers and tf of the last keyframe
+  // arrive before reading them.
+  auto settled = [&] {
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    if (rec_.kf_objects.empty() || rec_.arrays.empty() || rec_.markers.empty()) return false;
+    const ros::Time last = rec_.kf_objects.rbegin()->second.header.stamp;
+    if (rec_.arrays.back().header.stamp != last) return false;
+    if (rec_.markers.back().markers.empty() || rec_.markers.back().markers.front().header.stamp != last) return false;
+    for (const auto& o : rec_.arrays.back().objects) {
+      const auto f = rec_.object_frames.find("object_" + std::to_string(o.id));
+      if (f == rec_.object_frames.end() || f->second.header.stamp != last) return false;
+    }
+    return true;
+  };
+  EXPECT_TRUE(wait_for(settled, 10.0)) << "objects, markers or tf of the last keyframe missing";
+
+  dqo_map::ObjectArray final_array;
+  std::set<uint64_t> created, gone;
+  size_t arrays_before_bad = 0;
+  {
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    ASSERT_FALSE(rec_.arrays.empty());
+    final_array = rec_.arrays.back();
+    // ---- one confirmed object per ground-truth object
+    EXPECT_EQ(final_array.objects.size(), gt_.size());
+    std::set<uint64_t> matched_gt;
+    for (const auto& o : final_array.objects) {
+      const GtObject& g = nearest_gt(centre_of(o));
+      const double d = (g.centre - centre_of(o)).norm();
+      EXPECT_EQ(o.class_id, g.class_id) << "object " << o.id << " nearest to ground truth " << g.id;
+      EXPECT_LT(d, g.max_half_extent) << "object " << o.id << " is " << d << " m from ground truth " << g.id;
+      EXPECT_TRUE(matched_gt.insert(g.id).second) << "two objects for ground truth " << g.id;
+      std::printf("[ INFO     ] object %llu (%s): ground truth %llu at %.3f m, %u observations, semi-axes %.3f %.3f "
+                  "%.3f\n", static_cast<unsigned long long>(o.id), o.class_name.c_str(),
+                  static_cast<unsigned long long>(g.id), d, o.observations, o.semi_axes.x, o.semi_axes.y,
+                  o.semi_axes.z);
+    }
+    // Where each final object was first published (for diagnosing splits and bad initialisations).
+    for (const auto& o : final_array.objects) {
+      for (size_t k = 0; k < rec_.arrays.size(); ++k) {
+        const auto it = std::find_if(rec_.arrays[k].objects.begin(), rec_.arrays[k].objects.end(),
+                                     [&](const dqo_map::Object& p) { return p.id == o.id; });
+        if (it == rec_.arrays[k].objects.end()) continue;
+        const Eigen::Vector3d c = centre_of(*it);
+        std::printf("[ INFO     ] object %llu first published at %.3f: centre %.3f %.3f %.3f, semi-axes %.3f %.3f %.3f\n",
+                    static_cast<unsigned long long>(o.id), rec_.arrays[k].header.stamp.toSec(), c.x(), c.y(), c.z(),
+                    it->semi_axes.x, it->semi_axes.y, it->semi_axes.z);
+        break;
+      }
+    }
+
+    // ---- stable IDs: present from the first array that holds them to the end, always meaning the
+    // same ground-truth object; never created twice.
+    std::map<uint64_t, size_t> first_seen;
+    std::map<uint64_t, uint64_t> gt_at_first;
+    for (size_t k = 0; k < rec_.arrays.size(); ++k) {
+      for (const auto& o : rec_.arrays[k].objects) {
+        if (!first_seen.count(o.id)) {
+          first_seen[o.id] = k;
+          gt_at_first[o.id] = nearest_gt(centre_of(o)).id;
+        }
+      }
+    }
+    for (const auto& o : final_array.objects) {
+      ASSERT_TRUE(first_seen.count(o.id));
+      for (size_t k = first_seen[o.id]; k < rec_.arrays.size(); ++k) {
+        bool present = false;
+        for (const auto& p : rec_.arrays[k].objects) present = present || p.id == o.id;
+        EXPECT_TRUE(present) << "object " << o.id << " missing from array " << k << " after appearing in " << first_seen[o.id];
+      }
+      EXPECT_EQ(gt_at_first[o.id], nearest_gt(centre_of(o)).id) << "object " << o.id << " changed meaning";
+    }
+    for (const auto& e : rec_.events) {
+      if (e.type == dqo_map::ObjectEvent::CREATED) {
+        EXPECT_TRUE(created.insert(e.id).second) << "ID " << e.id << " created twice";
+      }
+      if (e.type != dqo_map::ObjectEvent::CREATED) gone.insert(e.id);
+      if (e.type == dqo_map::ObjectEvent::MERGED) {
+        EXPECT_NE(e.into_id, 0u);
+      }
+    }
+    for (const auto& o : final_array.objects) {
+      EXPECT_TRUE(created.count(o.id)) << "object " << o.id << " without a CREATED event";
+      EXPECT_FALSE(gone.count(o.id)) << "object " << o.id << " was merged or removed but is still published";
+    }
+    // Every ID, final or not, is published in one unbroken run of arrays: once gone, never back.
+    std::map<uint64_t, std::pair<size_t, size_t>> runs;  // id -> (last array, arrays holding it)
+    for (size_t k = 0; k < rec_.arrays.size(); ++k) {
+      for (const auto& p : rec_.arrays[k].objects) {
+        auto& r = runs[p.id];
+        r.first = k;
+        ++r.second;
+      }
+    }
+    for (const auto& [id, r] : runs) {
+      EXPECT_EQ(r.second, r.first - first_seen[id] + 1) << "object " << id << " disappeared and came back";
+    }
+    const uint64_t max_id = first_seen.empty() ? 0 : first_seen.rbegin()->first;
+
+    // ---- markers: an ellipsoid (2x semi-axes) and a label per object; DELETE for objects that went
+    ASSERT_FALSE(rec_.markers.empty());
+    std::map<std::pair<std::string, int>, visualization_msgs::Marker> last_marker;
+    for (const auto& arr : rec_.markers) {
+      for (const auto& m : arr.markers) last_marker[{m.ns, m.id}] = m;
+    }
+    for (const auto& o : final_array.objects) {
+      const auto s = last_marker.find({"ellipsoids", static_cast<int>(o.id)});
+      ASSERT_NE(s, last_marker.end()) << "no ellipsoid marker for object " << o.id;
+      EXPECT_EQ(s->second.type, visualization_msgs::Marker::SPHERE);
+      EXPECT_NEAR(s->second.scale.x, 2.0 * o.semi_axes.x, 1e-9);
+      EXPECT_NEAR(s->second.scale.z, 2.0 * o.semi_axes.z, 1e-9);
+      const auto t = last_marker.find({"labels", static_cast<int>(o.id)});
+      ASSERT_NE(t, last_marker.end());
+      EXPECT_EQ(t->second.text, std::to_string(o.id) + " " + o.class_name);
+    }
+    for (const uint64_t id : gone) {
+      const auto s = last_marker.find({"ellipsoids", static_cast<int>(id)});
+      if (s != last_marker.end()) {
+        EXPECT_EQ(s->second.action, visualization_msgs::Marker::DELETE) << "object " << id;
+      }
+    }
+
+    // ---- tf (publish_tf on in association.test): map -> object_<id> at each object's pose
+    for (const auto& o : final_array.objects) {
+      const auto f = rec_.object_frames.find("object_" + std::to_string(o.id));
+      ASSERT_NE(f, rec_.object_frames.end()) << "no tf frame for object " << o.id;
+      EXPECT_EQ(f->second.header.frame_id, "map");
+      EXPECT_NEAR(f->second.transform.translation.x, o.pose.position.x, 1e-9);
+      EXPECT_NEAR(f->second.transform.translation.z, o.pose.position.z, 1e-9);
+      EXPECT_NEAR(std::abs(f->second.transform.rotation.w * o.pose.orientation.w +
+                           f->second.transform.rotation.x * o.pose.orientation.x +
+                           f->second.transform.rotation.y * o.pose.orientation.y +
+                           f->second.transform.rotation.z * o.pose.orientation.z), 1.0, 1e-9);
+    }
+
+    // ---- keyframe_objects: parallel arrays, known objects, one detection per object
+      for (const auto& [stamp, m] : rec_.kf_objects) {
+      ASSERT_EQ(m.object_ids.size(), m.detections.detections.size()) << "keyframe " << m.keyframe_id;
+      ASSERT_TRUE(rec_.keyframes.count(stamp));
+      EXPECT_EQ(rec_.keyframes[stamp].id, m.keyframe_id);
+      std::set<uint64_t> ids;
+      for (const uint64_t id : m.object_ids) {
+        if (id == 0) continue;
+        EXPECT_TRUE(created.count(id)) << "keyframe " << m.keyframe_id << " names unknown object " << id;
+        EXPECT_TRUE(ids.insert(id).second) << "object " << id << " took two detections of keyframe " << m.keyframe_id;
+      }
+      for (const auto& d : m.detections.detections) {
+        EXPECT_TRUE(std::isfinite(d.x_min) && d.x_max > d.x_min && d.y_max > d.y_min);
+      }
+      EXPECT_EQ(m.detections.instance.width, 0u) << "the bag's detections carry no instance image";
+    }
+
+    // ---- list_objects: the published objects, and a class filter
+    bool ok = false;
+    const auto listed = list("", &ok);
+    ASSERT_TRUE(ok);
+    ASSERT_EQ(listed.size(), final_array.objects.size());
+    for (size_t i = 0; i < listed.size(); ++i) {
+      EXPECT_EQ(listed[i].id, final_array.objects[i].id);
+      EXPECT_EQ(listed[i].class_name, final_array.objects[i].class_name);
+      for (int k = 0; k < 16; ++k) EXPECT_DOUBLE_EQ(listed[i].dual_quadric[k], final_array.objects[i].dual_quadric[k]);
+    }
+    if (!listed.empty()) {
+      const std::string cls = listed.front().class_name;
+      size_t expected = 0;
+      for (const auto& o : listed) expected += o.class_name == cls;
+      const auto filtered = list(cls, &ok);
+      ASSERT_TRUE(ok);
+      EXPECT_EQ(filtered.size(), expected);
+      for (const auto& o : filtered) EXPECT_EQ(o.class_name, cls);
+      EXPECT_TRUE(list("no_such_class", &ok).empty());
+    }
+
+    // ---- the state file: the same objects, and a next ID above every ID given
+    if (!state_dir_.empty()) {
+      dqo::objects::ObjectMapper restored;
+      std::string error;
+      ASSERT_TRUE(restored.load_state(state_dir_ + "/objects_state.yaml", &error)) << error;
+      EXPECT_GT(restored.next_id(), max_id);
+      for (const uint64_t id : created) EXPECT_GT(restored.next_id(), id);
+      const auto objs = restored.objects();
+      ASSERT_EQ(objs.size(), final_array.objects.size());
+      for (size_t i = 0; i < objs.size(); ++i) EXPECT_EQ(objs[i].id, final_array.objects[i].id);
+    }
+    arrays_before_bad = rec_.arrays.size();
+  }
+
+  // ---- bad input. Keyframes built from the last one, with new IDs and later stamps.
+  dqo_map::KeyFrame kf_template;
+  {
+    std::lock_guard<std::mutex> l(rec_.mutex);
+    kf_template = rec_.keyframes.rbegin()->second;
+  }
+  const ros::Time t0 = captures_.back().stamp + ros::Duration(1.0);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  auto keyframe_at = [&](uint64_t id, const ros::Time& t) {
+    dqo_map::KeyFrame kf = kf_template;
+    kf.id = id;
+    kf.header.stamp = kf.rgb.header.stamp = kf.depth.header.stamp = kf.camera_info.header.stamp = t;
+    return kf;
+  };
+  auto detections_at = [&](const ros::Time& t) {
+    dqo_map::DetectionArray d = captures_.back().detections;
+    d.header.stamp = t;
+    return d;
+  };
+  // (a) NaN, negative-size and off-image boxes next to the real ones
+  dqo_map::DetectionArray bad = detections_at(t0);
+  dqo_map::Detection d;
+  d.class_id = 1, d.class_name = "book", d.score = 0.9f;
+  d.x_min = nan, d.y_min = 10, d.x_max = 50, d.y_max = 60;
+  bad.detections.push_back(d);
+  d.x_min = 100, d.y_min = 100, d.x_max = 40, d.y_max = 30;
+  bad.detections.push_back(d);
+  d.x_min = 5000, d.y_min = 5000, d.x_max = 5100, d.y_max = 5100;
+  bad.detections.push_back(d);
+  det_pub_.publish(bad);
+  kf_pub_.publish(keyframe_at(1000001, t0));
+  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t0); }, 30.0)) << "keyframe with bad boxes not processed";
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("rejected as unusable"); }, 5.0)) << "no log line about the bad boxes";
+  {
+    std::lock_guard<std::mutex> l(rec_.mutex);
+    const auto& m = rec_.kf_objects[t0.toSec()];
+    for (const auto& det : m.detections.detections) {
+      EXPECT_TRUE(std::isfinite(det.x_min) && det.x_max > det.x_min && det.x_max <= 640.f) << "a bad box passed";
+    }
+  }
+  // (b) a thousand detections
+  const ros::Time t1 = t0 + ros::Duration(0.1);
+  dqo_map::DetectionArray many;
+  many.header = bad.header;
+  many.header.stamp = t1;
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> x(0.f, 600.f), y(0.f, 440.f), s(5.f, 40.f);
+  for (int i = 0; i < 1000; ++i) {
+    d.x_min = x(rng), d.y_min = y(rng), d.x_max = d.x_min + s(rng), d.y_max = d.y_min + s(rng);
+    d.score = 0.5f;
+    many.detections.push_back(d);
+  }
+  det_pub_.publish(many);
+  kf_pub_.publish(keyframe_at(1000002, t1));
+  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t1); }, 60.0)) << "keyframe with 1000 detections not processed";
+  {
+    std::lock_guard<std::mutex> l(rec_.mutex);
+    const auto& m = rec_.kf_objects[t1.toSec()];
+    EXPECT_LT(m.detections.detections.size(), 1000u) << "the filter's cap on detections per keyframe";
+    EXPECT_EQ(m.object_ids.size(), m.detections.detections.size());
+  }
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("beyond the per-keyframe limit"); }, 5.0))
+      << "no log line about the detections over the limit";
+  // (c) an unsupported depth encoding: used without depth
+  const ros::Time t2 = t1 + ros::Duration(0.1);
+  dqo_map::KeyFrame odd = keyframe_at(1000003, t2);
+  odd.depth.encoding = "yuv422";
+  det_pub_.publish(detections_at(t2));
+  kf_pub_.publish(odd);
+  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t2); }, 30.0));
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("yuv422"); }, 5.0)) << "no log line naming the depth encoding";
+  // (d) a keyframe whose detections never come, then detections of no keyframe far later: the
+  // keyframe expires with a log line, the detections are dropped.
+  const ros::Time t3 = t2 + ros::Duration(0.1);
+  kf_pub_.publish(keyframe_at(1000004, t3));
+  ros::WallDuration(0.3).sleep();
+  det_pub_.publish(detections_at(t3 + ros::Duration(20.0)));
+  det_pub_.publish(detections_at(t3 + ros::Duration(20.5)));
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("got no detections"); }, 10.0)) << "no log line about the lonely keyframe";
+  EXPECT_FALSE(rec_.has_kf_objects(t3));
+  // (e) time goes back (a looping bag): buffers cleared, logged
+  det_pub_.publish(detections_at(captures_.front().stamp));
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("time went back"); }, 10.0)) << "no log line about the time jump";
+
+  // ---- still alive, and bad input made no confirmed object
+  bool ok = false;
+  const auto after = list("", &ok);
+  ASSERT_TRUE(ok) << "association_node no longer answers list_objects";
+  std::set<uint64_t> before_ids, after_ids;
+  for (const auto& o : final_array.objects) before_ids.insert(o.id);
+  for (const auto& o : after) after_ids.insert(o.id);
+  EXPECT_EQ(after_ids, before_ids);
+  {
+    std::lock_guard<std::mutex> l(rec_.mutex);
+    EXPECT_GT(rec_.arrays.size(), arrays_before_bad) << "objects are still published after bad input";
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_association_node");
+  ros::NodeHandle nh;  // keeps the node alive for the whole run
+  return RUN_ALL_TESTS();
+}
