@@ -1,39 +1,16 @@
 #include "dqo_map/objects/params_yaml.h"
 
-#include <charconv>
-#include <cmath>
-#include <fstream>
-#include <limits>
-#include <set>
-#include <sstream>
-#include <stdexcept>
-#include <variant>
-#include <vector>
+#include <string>
 
-#include <yaml-cpp/yaml.h>
+#include "dqo_map/config/yaml_schema.h"
 
 namespace dqo::objects {
 namespace {
 
-// One table describes every parameter: the loader and the writer both walk it, so that a field
-// added to the table is read and written alike (the same scheme as tracking/params_yaml.cpp).
-using Target =
-    std::variant<int*, float*, double*, bool*, AssociationStrategy*, QuadricDistanceKind*, FineQuadric*>;
-
-struct Field {
-  const char* key;
-  Target target;
-  double lo = -std::numeric_limits<double>::infinity();  // inclusive bounds for numbers
-  double hi = std::numeric_limits<double>::infinity();
-};
-
-struct Section {
-  const char* key;
-  std::vector<Field> fields;
-  std::vector<Section> sections;
-};
-
-constexpr double kInf = std::numeric_limits<double>::infinity();
+using config::Field;
+using config::kInf;
+using config::make_choice;
+using config::Section;
 
 bool parse_distance_kind(const std::string& text, QuadricDistanceKind* kind) {
   if (text == "qd") {
@@ -50,6 +27,8 @@ const char* distance_kind_name(QuadricDistanceKind kind) {
   return kind == QuadricDistanceKind::kQD ? "qd" : "w2";
 }
 
+// One table describes every parameter: the shared reader and writer (config/yaml_schema.h) both
+// walk it, so that a field added to the table is read and written alike.
 Section schema(ObjectMapperParams& p) {
   DetectionFilterParams& f = p.filter;
   VisibilityParams& v = p.visibility;
@@ -85,16 +64,16 @@ Section schema(ObjectMapperParams& p) {
                       {}},
               Section{"association",
                       {
-                          {"strategy", &a.strategy},
+                          {"strategy", make_choice(&a.strategy, parse_association_strategy, to_string, "iou, qd, iou+qd")},
                           {"min_iou", &a.min_iou, 0.0, 1.0},
                           {"min_similarity", &a.min_similarity, 0.0, 1.0},
                           {"max_init_views", &a.max_init_views, 3, 1000},
-                          {"fine_quadric", &a.fine_quadric},
+                          {"fine_quadric", make_choice(&a.fine_quadric, parse_fine_quadric, to_string, "boxes, depth")},
                           {"require_same_class", &a.require_same_class},
                       },
                       {Section{"distance",
                                {
-                                   {"kind", &a.distance.kind},
+                                   {"kind", make_choice(&a.distance.kind, parse_distance_kind, distance_kind_name, "qd, w2")},
                                    {"tau", &a.distance.tau, 1e-9, kInf},
                                    {"wasserstein_c", &a.distance.wasserstein_c, 1e-9, kInf},
                                },
@@ -159,155 +138,6 @@ Section schema(ObjectMapperParams& p) {
           }}}};
 }
 
-class ConfigError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-struct Reader {
-  std::string source;
-  bool positions = true;
-
-  [[noreturn]] void fail(const YAML::Node& node, const std::string& message) const {
-    std::string where = source;
-    if (positions && node.Mark().line >= 0) {
-      where += ":" + std::to_string(node.Mark().line + 1) + ":" + std::to_string(node.Mark().column + 1);
-    }
-    throw ConfigError(where + ": " + message);
-  }
-
-  static std::string join(const std::string& path, const std::string& key) {
-    return path.empty() ? key : path + "." + key;
-  }
-
-  static std::string shown(double v) {
-    char buf[32];
-    const auto r = std::to_chars(buf, buf + sizeof(buf), v);
-    return std::string(buf, r.ptr);
-  }
-
-  double number(const YAML::Node& node, const std::string& path, const Field& f) const {
-    if (!node.IsScalar()) fail(node, "'" + path + "' must be a number");
-    double v = 0.0;
-    try {
-      v = node.as<double>();
-    } catch (const YAML::Exception&) {
-      fail(node, "'" + path + "' must be a number, got '" + node.Scalar() + "'");
-    }
-    if (!std::isfinite(v)) fail(node, "'" + path + "' must be finite");
-    if (v < f.lo || v > f.hi) {
-      fail(node, "'" + path + "' = " + node.Scalar() + " is outside [" + shown(f.lo) + ", " +
-                     shown(f.hi) + "]");
-    }
-    return v;
-  }
-
-  int integer(const YAML::Node& node, const std::string& path, const Field& f) const {
-    const double v = number(node, path, f);
-    if (v != std::floor(v)) fail(node, "'" + path + "' must be an integer, got '" + node.Scalar() + "'");
-    return static_cast<int>(v);
-  }
-
-  void read_field(const YAML::Node& node, const std::string& path, const Field& f) const {
-    std::visit(
-        [&](auto* target) {
-          using T = std::remove_pointer_t<decltype(target)>;
-          if constexpr (std::is_same_v<T, bool>) {
-            bool v = false;
-            if (!node.IsScalar() || !YAML::convert<bool>::decode(node, v)) {
-              fail(node, "'" + path + "' must be true or false");
-            }
-            *target = v;
-          } else if constexpr (std::is_same_v<T, int>) {
-            *target = integer(node, path, f);
-          } else if constexpr (std::is_same_v<T, float>) {
-            *target = static_cast<float>(number(node, path, f));
-          } else if constexpr (std::is_same_v<T, double>) {
-            *target = number(node, path, f);
-          } else if constexpr (std::is_same_v<T, AssociationStrategy>) {
-            if (!node.IsScalar() || !parse_association_strategy(node.Scalar(), target)) {
-              fail(node, "'" + path + "' must be iou, qd or iou+qd");
-            }
-          } else if constexpr (std::is_same_v<T, FineQuadric>) {
-            if (!node.IsScalar() || !parse_fine_quadric(node.Scalar(), target)) {
-              fail(node, "'" + path + "' must be boxes or depth");
-            }
-          } else {
-            if (!node.IsScalar() || !parse_distance_kind(node.Scalar(), target)) {
-              fail(node, "'" + path + "' must be qd or w2");
-            }
-          }
-        },
-        f.target);
-  }
-
-  void read_section(const YAML::Node& node, const std::string& path, const Section& s) const {
-    if (node.IsNull()) return;  // `tracker:` with nothing under it
-    if (!node.IsMap()) fail(node, (path.empty() ? std::string("the file") : "'" + path + "'") + " must be a map");
-    std::set<std::string> seen;
-    for (const auto& kv : node) {
-      const YAML::Node& key_node = kv.first;
-      if (!key_node.IsScalar()) fail(key_node, "keys must be names");
-      const std::string key = key_node.Scalar();
-      const std::string full = join(path, key);
-      if (!seen.insert(key).second) fail(key_node, "'" + full + "' is given twice");
-      bool known = false;
-      for (const Field& f : s.fields) {
-        if (key == f.key) {
-          read_field(kv.second, full, f);
-          known = true;
-        }
-      }
-      for (const Section& sub : s.sections) {
-        if (key == sub.key) {
-          read_section(kv.second, full, sub);
-          known = true;
-        }
-      }
-      if (!known) {
-        std::string names;
-        for (const Field& f : s.fields) names += std::string(names.empty() ? "" : ", ") + f.key;
-        for (const Section& sub : s.sections) names += std::string(names.empty() ? "" : ", ") + sub.key;
-        fail(key_node, "unknown key '" + full + "' (known" + (path.empty() ? "" : " in " + path) +
-                           ": " + names + ")");
-      }
-    }
-  }
-};
-
-void write_section(std::ostream& out, const Section& s, int indent) {
-  const std::string pad(static_cast<size_t>(indent), ' ');
-  for (const Field& f : s.fields) {
-    out << pad << f.key << ": ";
-    std::visit(
-        [&](auto* target) {
-          using T = std::remove_pointer_t<decltype(target)>;
-          if constexpr (std::is_same_v<T, bool>) {
-            out << (*target ? "true" : "false");
-          } else if constexpr (std::is_same_v<T, int>) {
-            out << *target;
-          } else if constexpr (std::is_same_v<T, float> || std::is_same_v<T, double>) {
-            char buf[40];
-            auto r = std::to_chars(buf, buf + sizeof(buf), *target);
-            std::string text(buf, r.ptr);
-            // Keep a decimal point so that the value reads back as a real number everywhere.
-            if (text.find_first_of(".en") == std::string::npos) text += ".0";
-            out << text;
-          } else if constexpr (std::is_same_v<T, AssociationStrategy> || std::is_same_v<T, FineQuadric>) {
-            out << to_string(*target);
-          } else {
-            out << distance_kind_name(*target);
-          }
-        },
-        f.target);
-    out << "\n";
-  }
-  for (const Section& sub : s.sections) {
-    out << pad << sub.key << ":\n";
-    write_section(out, sub, indent + 2);
-  }
-}
-
 }  // namespace
 
 std::optional<ObjectMapperParams> parse_object_params(const std::string& text,
@@ -315,23 +145,7 @@ std::optional<ObjectMapperParams> parse_object_params(const std::string& text,
                                                       const ObjectMapperParams& base,
                                                       bool positions) {
   ObjectMapperParams params = base;
-  const Reader reader{source, positions};
-  try {
-    const YAML::Node root = YAML::Load(text);
-    if (root.IsDefined() && !root.IsNull()) reader.read_section(root, "", schema(params));
-  } catch (const ConfigError& e) {
-    if (error) *error = e.what();
-    return std::nullopt;
-  } catch (const YAML::Exception& e) {
-    if (error) {
-      *error = source;
-      if (positions && e.mark.line >= 0) {
-        *error += ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1);
-      }
-      *error += ": " + e.msg;
-    }
-    return std::nullopt;
-  }
+  if (!config::read_yaml(text, source, positions, schema(params), error)) return std::nullopt;
   auto cross = [&](bool bad, const std::string& message) {
     if (bad && error) *error = source + ": " + message;
     return bad;
@@ -351,21 +165,14 @@ std::optional<ObjectMapperParams> parse_object_params(const std::string& text,
 }
 
 std::optional<ObjectMapperParams> load_object_params(const std::string& path, std::string* error) {
-  std::ifstream in(path);
-  if (!in) {
-    if (error) *error = path + ": cannot open the file";
-    return std::nullopt;
-  }
-  std::stringstream text;
-  text << in.rdbuf();
-  return parse_object_params(text.str(), path, error);
+  std::string text;
+  if (!config::read_text_file(path, &text, error)) return std::nullopt;
+  return parse_object_params(text, path, error);
 }
 
 std::string object_params_to_yaml(const ObjectMapperParams& params) {
   ObjectMapperParams copy = params;  // the schema points into a mutable struct
-  std::ostringstream out;
-  write_section(out, schema(copy), 0);
-  return out.str();
+  return config::write_yaml(schema(copy));
 }
 
 }  // namespace dqo::objects

@@ -90,7 +90,7 @@ TEST(ObjectParamsYaml, StrictErrorsNameTheKeyAndPosition) {
   EXPECT_FALSE(parse_object_params("objects:\n  filter:\n    min_score: 1.5\n", "f.yaml", &error));
   EXPECT_NE(error.find("objects.filter.min_score"), std::string::npos) << error;
   EXPECT_FALSE(parse_object_params("objects:\n  association:\n    strategy: hungarian\n", "f.yaml", &error));
-  EXPECT_NE(error.find("iou, qd or iou+qd"), std::string::npos) << error;
+  EXPECT_NE(error.find("one of iou, qd, iou+qd, got 'hungarian'"), std::string::npos) << error;
   EXPECT_FALSE(parse_object_params("objects:\n  refine: maybe\n", "f.yaml", &error));
   EXPECT_NE(error.find("objects.refine"), std::string::npos) << error;
   EXPECT_FALSE(parse_object_params("objects:\n  merge: {enabled: true, enabled: false}\n", "f.yaml", &error));
