@@ -5,6 +5,7 @@
 #include <limits>
 #include <map>
 
+#include "dqo_map/common/min_cost_assignment.h"
 #include "dqo_map/geometry/conic.h"
 #include "dqo_map/geometry/dual_quadric.h"
 
@@ -13,58 +14,6 @@ namespace dqo::eval {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// Minimum-cost perfect assignment of a square cost matrix (Hungarian method with potentials,
-// O(n³)): col_of_row[i] is the column assigned to row i. The sets are a scene's objects of one
-// class, so n is small, but brute force over permutations would not be.
-std::vector<int> solve_assignment(const std::vector<std::vector<double>>& cost) {
-  const int n = static_cast<int>(cost.size());
-  const double kInf = std::numeric_limits<double>::infinity();
-  // 1-based arrays of the classical formulation; column 0 is the virtual start.
-  std::vector<double> u(n + 1, 0.0), v(n + 1, 0.0);
-  std::vector<int> row_of(n + 1, 0), way(n + 1, 0);
-  for (int i = 1; i <= n; ++i) {
-    row_of[0] = i;
-    int j0 = 0;
-    std::vector<double> min_v(n + 1, kInf);
-    std::vector<bool> used(n + 1, false);
-    do {
-      used[j0] = true;
-      const int i0 = row_of[j0];
-      double delta = kInf;
-      int j1 = 0;
-      for (int j = 1; j <= n; ++j) {
-        if (used[j]) continue;
-        const double c = cost[i0 - 1][j - 1] - u[i0] - v[j];
-        if (c < min_v[j]) {
-          min_v[j] = c;
-          way[j] = j0;
-        }
-        if (min_v[j] < delta) {
-          delta = min_v[j];
-          j1 = j;
-        }
-      }
-      for (int j = 0; j <= n; ++j) {
-        if (used[j]) {
-          u[row_of[j]] += delta;
-          v[j] -= delta;
-        } else {
-          min_v[j] -= delta;
-        }
-      }
-      j0 = j1;
-    } while (row_of[j0] != 0);
-    do {
-      const int j1 = way[j0];
-      row_of[j0] = row_of[j1];
-      j0 = j1;
-    } while (j0 != 0);
-  }
-  std::vector<int> col_of_row(n, -1);
-  for (int j = 1; j <= n; ++j) col_of_row[row_of[j] - 1] = j - 1;
-  return col_of_row;
-}
 
 // Pairs (estimate index, ground-truth index) of one class: as many admissible pairs as possible,
 // then the least total centre distance. Inadmissible pairs and padding cost more than every
@@ -93,13 +42,13 @@ std::vector<std::pair<int, int>> match_class(const std::vector<ObjectEstimate>& 
   }
   if (!any) return {};
   const double kBig = 1.0 + 2.0 * total;
-  std::vector<std::vector<double>> cost(n, std::vector<double>(n, kBig));
+  Eigen::MatrixXd cost = Eigen::MatrixXd::Constant(n, n, kBig);
   for (size_t a = 0; a < est_idx.size(); ++a) {
     for (size_t b = 0; b < gt_idx.size(); ++b) {
-      if (admissible[a][b]) cost[a][b] = distance[a][b];
+      if (admissible[a][b]) cost(a, b) = distance[a][b];
     }
   }
-  const std::vector<int> col_of_row = solve_assignment(cost);
+  const std::vector<int> col_of_row = min_cost_assignment(cost);
   std::vector<std::pair<int, int>> pairs;
   for (size_t a = 0; a < est_idx.size(); ++a) {
     const int b = col_of_row[a];

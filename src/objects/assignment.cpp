@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "dqo_map/common/min_cost_assignment.h"
+
 namespace dqo::objects {
 
 namespace {
 
-// The Hungarian method on one dense block.
+// One dense block: scores turned into the square cost matrix of the shared Hungarian method.
 std::vector<int> solve_dense(const Eigen::MatrixXd& scores) {
   const int rows = static_cast<int>(scores.rows());
   const int cols = static_cast<int>(scores.cols());
@@ -21,53 +23,14 @@ std::vector<int> solve_dense(const Eigen::MatrixXd& scores) {
     const double s = scores(i, j);
     return std::isfinite(s) && s > 0.0 ? -s : 0.0;
   };
-  // Potentials u (rows), v (columns) and the column-to-row matching p, 1-based with 0 a sentinel
-  // (the shortest augmenting path formulation of the Hungarian method).
-  const double inf = std::numeric_limits<double>::infinity();
-  std::vector<double> u(n + 1, 0.0), v(n + 1, 0.0);
-  std::vector<int> p(n + 1, 0), way(n + 1, 0);
-  for (int i = 1; i <= n; ++i) {
-    p[0] = i;
-    int j0 = 0;
-    std::vector<double> minv(n + 1, inf);
-    std::vector<bool> used(n + 1, false);
-    do {
-      used[j0] = true;
-      const int i0 = p[j0];
-      double delta = inf;
-      int j1 = 0;
-      for (int j = 1; j <= n; ++j) {
-        if (used[j]) continue;
-        const double cur = cost(i0 - 1, j - 1) - u[i0] - v[j];
-        if (cur < minv[j]) {
-          minv[j] = cur;
-          way[j] = j0;
-        }
-        if (minv[j] < delta) {
-          delta = minv[j];
-          j1 = j;
-        }
-      }
-      for (int j = 0; j <= n; ++j) {
-        if (used[j]) {
-          u[p[j]] += delta;
-          v[j] -= delta;
-        } else {
-          minv[j] -= delta;
-        }
-      }
-      j0 = j1;
-    } while (p[j0] != 0);
-    do {
-      const int j1 = way[j0];
-      p[j0] = p[j1];
-      j0 = j1;
-    } while (j0 != 0);
+  Eigen::MatrixXd square(n, n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) square(i, j) = cost(i, j);
   }
-  for (int j = 1; j <= n; ++j) {
-    const int i = p[j] - 1;
-    const int c = j - 1;
-    if (i < rows && c < cols && cost(i, c) < 0.0) row_to_col[static_cast<size_t>(i)] = c;
+  const std::vector<int> col_of_row = min_cost_assignment(square);
+  for (int i = 0; i < rows; ++i) {
+    const int c = col_of_row[static_cast<size_t>(i)];
+    if (c < cols && cost(i, c) < 0.0) row_to_col[static_cast<size_t>(i)] = c;
   }
   return row_to_col;
 }
