@@ -18,12 +18,15 @@
 
 #include "dqo_map/common/object_list.h"
 #include "dqo_map/common/progress.h"
+#include "dqo_map/common/statistics.h"
 #include "dqo_map/common/tum_trajectory.h"
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/objects/params_yaml.h"
 #include "dqo_map/system/object_pipeline.h"
 
 namespace {
+
+using dqo::median;
 
 constexpr char kUsage[] =
     "usage: dqo_objects DATASET_DIR --out objects.txt [--poses gt|TRAJ.txt] [--strategy iou|qd|iou+qd]\n"
@@ -42,13 +45,6 @@ constexpr char kUsage[] =
 int usage_error(const std::string& message) {
   std::fprintf(stderr, "dqo_objects: %s\n%s", message.c_str(), kUsage);
   return 2;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "dqo_map/common/progress.h"
+#include "dqo_map/common/statistics.h"
 #include "dqo_map/common/tum_trajectory.h"
 #include "dqo_map/eval/ate.h"
 #include "dqo_map/io/dataset_reader.h"
@@ -20,6 +21,8 @@
 #include "dqo_map/tracking/tracking_session.h"
 
 namespace {
+
+using dqo::median;
 
 constexpr char kUsage[] =
     "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N]\n"
@@ -38,13 +41,6 @@ struct Options {
 int usage_error(const std::string& message) {
   std::fprintf(stderr, "dqo_track: %s\n%s", message.c_str(), kUsage);
   return 2;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 }  // namespace

@@ -24,11 +24,14 @@
 #include <utility>
 #include <vector>
 
+#include "dqo_map/common/statistics.h"
 #include "dqo_map/sim/renderer.h"
 #include "dqo_map/sim/scene_loader.h"
 #include "dqo_map/tracking/dense_alignment.h"
 
 namespace {
+
+using dqo::percentile;
 
 using dqo::SE3;
 using dqo::tracking::DenseParams;
@@ -39,12 +42,6 @@ double thread_ms() {
   timespec ts;
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5))];
 }
 
 double angle_deg(const SE3& T) {

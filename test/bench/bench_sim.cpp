@@ -17,10 +17,13 @@
 #include <thread>
 #include <vector>
 
+#include "dqo_map/common/statistics.h"
 #include "dqo_map/sim/renderer.h"
 #include "dqo_map/sim/scene_loader.h"
 
 namespace {
+
+using dqo::median;
 
 void write_ppm(const std::string& path, const dqo::ImageRgb8& img) {
   std::ofstream out(path, std::ios::binary);
@@ -36,12 +39,6 @@ void write_pgm16(const std::string& path, int w, int h, const std::vector<uint16
     const char b[2] = {static_cast<char>(x >> 8), static_cast<char>(x & 0xff)};  // big-endian
     out.write(b, 2);
   }
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 int usage(const char* argv0) {

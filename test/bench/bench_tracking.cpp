@@ -26,12 +26,15 @@
 #include <thread>
 #include <vector>
 
+#include "dqo_map/common/statistics.h"
 #include "dqo_map/eval/ate.h"
 #include "dqo_map/sim/renderer.h"
 #include "dqo_map/sim/scene_loader.h"
 #include "dqo_map/tracking/tracker.h"
 
 namespace {
+
+using dqo::percentile;
 
 using dqo::tracking::TrackingState;
 
@@ -99,15 +102,6 @@ double thread_cpu_ms() {
   timespec ts;
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const size_t i = static_cast<size_t>(pos);
-  const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1.0 - f) + v[i + 1] * f : v[i];
 }
 
 struct RenderedFrame {
