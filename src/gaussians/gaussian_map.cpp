@@ -40,7 +40,6 @@ size_t GaussianMap::add(const GaussianInit& g) {
   object_id_.push_back(g.object_id);
   birth_keyframe_.push_back(g.birth_keyframe);
   type_.push_back(static_cast<uint8_t>(g.type));
-  if (index_valid_) index_[g.object_id].push_back(static_cast<uint32_t>(index));
   return index;
 }
 
@@ -74,20 +73,15 @@ size_t GaussianMap::remove_if(const std::vector<uint8_t>& remove) {
   compact(birth_keyframe_, 1, remove);
   compact(type_, 1, remove);
   const size_t removed = before - size();
-  if (removed) invalidate_index();
   return removed;
 }
 
-const std::vector<uint32_t>& GaussianMap::indices_of(uint32_t object_id) const {
-  if (!index_valid_) {
-    index_.clear();
-    for (size_t i = 0; i < object_id_.size(); ++i)
-      index_[object_id_[i]].push_back(static_cast<uint32_t>(i));
-    index_valid_ = true;
+std::vector<uint32_t> GaussianMap::indices_of(uint32_t object_id) const {
+  std::vector<uint32_t> indices;
+  for (size_t i = 0; i < object_id_.size(); ++i) {
+    if (object_id_[i] == object_id) indices.push_back(static_cast<uint32_t>(i));
   }
-  static const std::vector<uint32_t> kNone;
-  const auto it = index_.find(object_id);
-  return it == index_.end() ? kNone : it->second;
+  return indices;
 }
 
 std::vector<uint32_t> GaussianMap::object_ids() const {
@@ -106,7 +100,6 @@ size_t GaussianMap::relabel(uint32_t from, uint32_t to) {
       ++n;
     }
   }
-  if (n) invalidate_index();
   return n;
 }
 

@@ -37,14 +37,7 @@ SE3 from_pose_msg(const geometry_msgs::Pose& pose) {
 }
 
 sensor_msgs::Image to_bgra8_msg(const ImageRgb8& rgb, const std_msgs::Header& header) {
-  sensor_msgs::Image msg;
-  msg.header = header;
-  msg.width = rgb.width;
-  msg.height = rgb.height;
-  msg.encoding = sensor_msgs::image_encodings::BGRA8;
-  msg.is_bigendian = 0;
-  msg.step = rgb.width * 4;
-  msg.data.resize(static_cast<size_t>(msg.step) * rgb.height);
+  sensor_msgs::Image msg = image_msg(rgb, sensor_msgs::image_encodings::BGRA8, 4, header);
   const size_t n = static_cast<size_t>(rgb.width) * rgb.height;
   for (size_t i = 0; i < n; ++i) {
     msg.data[4 * i + 0] = rgb.data[3 * i + 2];
@@ -56,14 +49,7 @@ sensor_msgs::Image to_bgra8_msg(const ImageRgb8& rgb, const std_msgs::Header& he
 }
 
 sensor_msgs::Image to_depth_mm_msg(const DepthImage& depth, const std_msgs::Header& header) {
-  sensor_msgs::Image msg;
-  msg.header = header;
-  msg.width = depth.width;
-  msg.height = depth.height;
-  msg.encoding = sensor_msgs::image_encodings::TYPE_16UC1;
-  msg.is_bigendian = 0;
-  msg.step = depth.width * 2;
-  msg.data.resize(static_cast<size_t>(msg.step) * depth.height);
+  sensor_msgs::Image msg = image_msg(depth, sensor_msgs::image_encodings::TYPE_16UC1, 2, header);
   const size_t n = static_cast<size_t>(depth.width) * depth.height;
   for (size_t i = 0; i < n; ++i) {
     const float z = depth.data[i];
@@ -107,10 +93,8 @@ dqo_map::DetectionArray to_detection_array_msg(const std::vector<Detection2d>& d
   return msg;
 }
 
-namespace {
-
-bool check_layout(const sensor_msgs::Image& msg, size_t bytes_per_pixel, const char* what,
-                  std::string* error) {
+bool check_image_layout(const sensor_msgs::Image& msg, size_t bytes_per_pixel, const char* what,
+                        std::string* error) {
   const size_t row = static_cast<size_t>(msg.width) * bytes_per_pixel;
   if (msg.width == 0 || msg.height == 0 || msg.step < row ||
       msg.data.size() < static_cast<size_t>(msg.step) * (msg.height - 1) + row) {
@@ -123,6 +107,8 @@ bool check_layout(const sensor_msgs::Image& msg, size_t bytes_per_pixel, const c
   }
   return true;
 }
+
+namespace {
 
 // The host is little-endian (x86, ARM as ROS runs on them): data marked big-endian is swapped.
 template <typename T>
@@ -157,7 +143,7 @@ bool from_colour_msg(const sensor_msgs::Image& msg, ImageRgb8* rgb, std::string*
     }
     return false;
   }
-  if (!check_layout(msg, channels, "colour", error)) return false;
+  if (!check_image_layout(msg, channels, "colour", error)) return false;
   *rgb = ImageRgb8(static_cast<int>(msg.width), static_cast<int>(msg.height), 3);
   uint8_t* out = rgb->data.data();
   for (uint32_t y = 0; y < msg.height; ++y) {
@@ -179,7 +165,7 @@ bool from_depth_msg(const sensor_msgs::Image& msg, DepthImage* depth, std::strin
     if (error) *error = "depth encoding '" + msg.encoding + "' is not supported (16UC1 millimetres, 32FC1 metres)";
     return false;
   }
-  if (!check_layout(msg, mm ? 2 : 4, "depth", error)) return false;
+  if (!check_image_layout(msg, mm ? 2 : 4, "depth", error)) return false;
   *depth = DepthImage(static_cast<int>(msg.width), static_cast<int>(msg.height), 1);
   float* out = depth->data.data();
   const bool big = msg.is_bigendian != 0;
@@ -204,17 +190,10 @@ size_t count_valid_depth(const DepthImage& depth) {
 }
 
 sensor_msgs::Image to_rgb8_msg(const ImageRgb8& rgb, const std_msgs::Header& header) {
-  sensor_msgs::Image msg;
-  msg.header = header;
-  msg.width = rgb.width;
-  msg.height = rgb.height;
-  msg.encoding = sensor_msgs::image_encodings::RGB8;
-  msg.is_bigendian = 0;
-  msg.step = rgb.width * 3;
+  sensor_msgs::Image msg = image_msg(rgb, sensor_msgs::image_encodings::RGB8, 3, header);
   if (rgb.channels == 3) {
     msg.data = rgb.data;
   } else {
-    msg.data.resize(static_cast<size_t>(msg.step) * rgb.height);
     const size_t n = static_cast<size_t>(rgb.width) * rgb.height;
     for (size_t i = 0; i < n; ++i) {
       for (int c = 0; c < 3; ++c) msg.data[3 * i + c] = rgb.data[i * rgb.channels + std::min(c, rgb.channels - 1)];
@@ -224,14 +203,7 @@ sensor_msgs::Image to_rgb8_msg(const ImageRgb8& rgb, const std_msgs::Header& hea
 }
 
 sensor_msgs::Image to_depth_m_msg(const DepthImage& depth, const std_msgs::Header& header) {
-  sensor_msgs::Image msg;
-  msg.header = header;
-  msg.width = depth.width;
-  msg.height = depth.height;
-  msg.encoding = sensor_msgs::image_encodings::TYPE_32FC1;
-  msg.is_bigendian = 0;
-  msg.step = depth.width * 4;
-  msg.data.resize(static_cast<size_t>(msg.step) * depth.height);
+  sensor_msgs::Image msg = image_msg(depth, sensor_msgs::image_encodings::TYPE_32FC1, 4, header);
   std::memcpy(msg.data.data(), depth.data.data(), msg.data.size());
   return msg;
 }

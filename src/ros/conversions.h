@@ -2,6 +2,7 @@
 // Conversions between the core's value types and ROS messages. The ROS layer's only "maths": field
 // copies and unit changes. Private to src/ros (ROS headers stay out of include/dqo_map).
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,11 @@ bool from_colour_msg(const sensor_msgs::Image& msg, ImageRgb8* rgb, std::string*
 // Depth as metres: 16UC1 (or mono16) millimetres, 32FC1 metres. Anything that is not a positive
 // finite depth (0, NaN, inf, negative) becomes 0, "no measurement". Big-endian data is swapped.
 bool from_depth_msg(const sensor_msgs::Image& msg, DepthImage* depth, std::string* error);
+// Whether an image message's size fields fit its data at `bytes_per_pixel`: false and *error
+// ("<what> image WxH (encoding, step S) holds N bytes: malformed") otherwise. Every from_*_msg
+// checks this before reading pixels, with the same words.
+bool check_image_layout(const sensor_msgs::Image& msg, size_t bytes_per_pixel, const char* what,
+                        std::string* error);
 // Pixel count with a measurement (> 0).
 size_t count_valid_depth(const DepthImage& depth);
 
@@ -48,5 +54,23 @@ sensor_msgs::Image to_depth_m_msg(const DepthImage& depth, const std_msgs::Heade
 
 // The calibration of a CameraInfo, for the undistortion (ROS-free types).
 tracking::CameraCalibration to_calibration(const sensor_msgs::CameraInfo& info);
+
+// What every image message built here shares: `image`'s size and the header, `bytes_per_pixel`
+// per pixel in packed rows, little-endian (is_bigendian = 0: the hosts ROS runs on are), and data
+// zeroed at step x height for the caller to fill. One place, so the to_*_msg functions cannot
+// disagree on step or byte order.
+template <typename T>
+sensor_msgs::Image image_msg(const Image<T>& image, const std::string& encoding, uint32_t bytes_per_pixel,
+                             const std_msgs::Header& header) {
+  sensor_msgs::Image msg;
+  msg.header = header;
+  msg.width = image.width;
+  msg.height = image.height;
+  msg.encoding = encoding;
+  msg.is_bigendian = 0;
+  msg.step = image.width * bytes_per_pixel;
+  msg.data.resize(static_cast<size_t>(msg.step) * image.height);
+  return msg;
+}
 
 }  // namespace dqo::ros_bridge

@@ -72,16 +72,7 @@ bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, 
     if (error) *error = "instance image encoding '" + msg.encoding + "' is not supported (mono8, mono16, rgb8, bgr8)";
     return false;
   }
-  const size_t row = static_cast<size_t>(msg.width) * bytes;
-  if (msg.width == 0 || msg.height == 0 || msg.step < row ||
-      msg.data.size() < static_cast<size_t>(msg.step) * (msg.height - 1) + row) {
-    if (error) {
-      *error = "instance image " + std::to_string(msg.width) + "x" + std::to_string(msg.height) + " (" +
-               msg.encoding + ", step " + std::to_string(msg.step) + ") holds " +
-               std::to_string(msg.data.size()) + " bytes: malformed";
-    }
-    return false;
-  }
+  if (!check_image_layout(msg, bytes, "instance", error)) return false;
   *labels = objects::LabelImage(static_cast<int>(msg.width), static_cast<int>(msg.height), 1, 0);
   uint32_t* out = labels->data.data();
   for (uint32_t y = 0; y < msg.height; ++y) {
@@ -100,14 +91,7 @@ bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, 
 }
 
 sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header) {
-  sensor_msgs::Image msg;
-  msg.header = header;
-  msg.width = image.width;
-  msg.height = image.height;
-  msg.encoding = sensor_msgs::image_encodings::MONO16;
-  msg.is_bigendian = 0;
-  msg.step = image.width * 2;
-  msg.data.resize(static_cast<size_t>(msg.step) * image.height);
+  sensor_msgs::Image msg = image_msg(image, sensor_msgs::image_encodings::MONO16, 2, header);
   if (!image.data.empty()) std::memcpy(msg.data.data(), image.data.data(), msg.data.size());  // little-endian host
   return msg;
 }

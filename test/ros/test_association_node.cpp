@@ -15,11 +15,8 @@
 //   - bad input (NaN, negative and off-image boxes, a thousand detections, detections without a
 //     keyframe, a keyframe without detections, an unsupported depth encoding, time going back) is
 //     logged and skipped, and the node still answers list_objects with the same objects.
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -31,8 +28,6 @@
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
-#include <rosbag/bag.h>
-#include <rosbag/view.h>
 #include <rosgraph_msgs/Clock.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -48,18 +43,13 @@
 #include <dqo_map/ObjectEvent.h>
 
 #include "dqo_map/objects/object_mapper.h"
+#include "ros_test_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
-
-struct Capture {
-  ros::Time stamp;
-  sensor_msgs::Image rgb, depth;
-  sensor_msgs::CameraInfo info;
-  tf2_msgs::TFMessage tf;  // ground truth map -> camera_base
-  dqo_map::DetectionArray detections;
-};
+using dqo::ros_test::Capture;  // its tf: the ground truth map -> camera_base (--gt-tf)
+using dqo::ros_test::wait_for;
 
 struct GtObject {
   uint64_t id = 0;
@@ -98,7 +88,7 @@ struct Recorder {
   std::vector<dqo_map::ObjectArray> arrays;
   std::vector<dqo_map::ObjectEvent> events;
   std::vector<visualization_msgs::MarkerArray> markers;
-  std::vector<std::string> logs;
+  dqo::ros_test::RosoutLog log{"association"};
   std::map<std::string, geometry_msgs::TransformStamped> object_frames;  // map -> object_<id>, latest
 
   void on_keyframe(const dqo_map::KeyFrame::ConstPtr& m) {
@@ -127,11 +117,10 @@ struct Recorder {
       if (t.child_frame_id.rfind("object_", 0) == 0) object_frames[t.child_frame_id] = t;
     }
   }
-  void on_log(const rosgraph_msgs::Log::ConstPtr& log) {
-    std::lock_guard<std::mutex> lock(mutex);
-    if (log->name.find("association") != std::string::npos) logs.push_back(log->msg);
-    if (log->name.find("tracking") != std::string::npos && log->level >= rosgraph_msgs::Log::WARN) {
-      std::printf("[ INFO     ] tracking_node said: %s\n", log->msg.c_str());
+  void on_log(const rosgraph_msgs::Log::ConstPtr& line) {
+    log.on_log(*line);
+    if (line->name.find("tracking") != std::string::npos && line->level >= rosgraph_msgs::Log::WARN) {
+      std::printf("[ INFO     ] tracking_node said: %s\n", line->msg.c_str());
     }
   }
   bool has_kf_objects(const ros::Time& t) {
@@ -142,40 +131,19 @@ struct Recorder {
     std::lock_guard<std::mutex> lock(mutex);
     return keyframes.count(t.toSec()) > 0;
   }
-  bool logged(const std::string& needle) {
-    std::lock_guard<std::mutex> lock(mutex);
-    for (const auto& m : logs) {
-      if (m.find(needle) != std::string::npos) return true;
-    }
-    return false;
-  }
+  bool logged(const std::string& needle) const { return log.logged(needle); }
 };
-
-template <typename Pred>
-bool wait_for(Pred pred, double seconds) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (pred()) return true;
-    ros::WallDuration(0.005).sleep();
-  }
-  return pred();
-}
 
 class AssociationNodeTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = fs::temp_directory_path() / ("dqo_association_test_" + std::to_string(getpid()));
-    fs::create_directories(dir_);
+    dir_ = dqo::ros_test::make_test_dir("dqo_association_test_");
     // By default (association.test) 40 frames, every 5th of the 300-frame orbit: 240 degrees around
     // the table, every object seen from many sides.
     ros::NodeHandle pnh("~");
     pnh.param("frames", frames_, 40);
     pnh.param("every", every_, 5);
-    const std::string cmd = std::string(DQO_MAKE_SCENE) + " " + DQO_SOURCE_DIR + "/config/scenes/tabletop.yaml " +
-                            (dir_ / "data").string() + " --bag " + (dir_ / "tabletop.bag").string() + " --frames " +
-                            std::to_string(frames_) + " --every " + std::to_string(every_) + " --gt-tf --overwrite > " +
-                            (dir_ / "make_scene.log").string() + " 2>&1";
-    make_scene_rc_ = std::system(cmd.c_str());
+    make_scene_rc_ = dqo::ros_test::render_tabletop_bag(dir_, frames_, every_, "--gt-tf");
   }
   static void TearDownTestSuite() {
     std::error_code ec;
@@ -184,30 +152,7 @@ class AssociationNodeTest : public ::testing::Test {
 
   void SetUp() override {
     ASSERT_EQ(make_scene_rc_, 0) << "dqo_make_scene failed; see " << (dir_ / "make_scene.log");
-    rosbag::Bag bag((dir_ / "tabletop.bag").string(), rosbag::bagmode::Read);
-    std::map<ros::Time, Capture> by_stamp;
-    for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
-      if (m.getTopic() == "/tf_static") {
-        tf_static_ = *m.instantiate<tf2_msgs::TFMessage>();
-      } else if (m.getTopic() == "/tf") {
-        auto tf = m.instantiate<tf2_msgs::TFMessage>();
-        by_stamp[tf->transforms.at(0).header.stamp].tf = *tf;
-      } else if (m.getTopic() == "/rgb/image_raw") {
-        auto img = m.instantiate<sensor_msgs::Image>();
-        by_stamp[img->header.stamp].rgb = *img;
-        by_stamp[img->header.stamp].stamp = img->header.stamp;
-      } else if (m.getTopic() == "/depth_to_rgb/image_raw") {
-        auto img = m.instantiate<sensor_msgs::Image>();
-        by_stamp[img->header.stamp].depth = *img;
-      } else if (m.getTopic() == "/rgb/camera_info") {
-        auto info = m.instantiate<sensor_msgs::CameraInfo>();
-        by_stamp[info->header.stamp].info = *info;
-      } else if (m.getTopic() == "/detections") {
-        auto det = m.instantiate<dqo_map::DetectionArray>();
-        by_stamp[det->header.stamp].detections = *det;
-      }
-    }
-    for (auto& [stamp, c] : by_stamp) captures_.push_back(c);
+    captures_ = dqo::ros_test::read_captures((dir_ / "tabletop.bag").string(), &tf_static_);
     ASSERT_EQ(captures_.size(), static_cast<size_t>(frames_));
     for (const auto& c : captures_) ASSERT_FALSE(c.tf.transforms.empty()) << "the bag has no ground-truth tf";
     gt_ = read_gt(dir_ / "data" / "objects_gt.txt");
@@ -251,39 +196,24 @@ class AssociationNodeTest : public ::testing::Test {
     if (!state_dir_.empty()) fs::remove_all(state_dir_, ec);  // the launch file's fresh state folder
   }
 
-  void set_clock(const ros::Time& t) {
-    rosgraph_msgs::Clock c;
-    c.clock = t;
-    clock_pub_.publish(c);
-  }
+  void set_clock(const ros::Time& t) { dqo::ros_test::set_clock(clock_pub_, t); }
 
   // One capture as the bag holds it; returns once association_node has published its
   // keyframe_objects (every frame is a keyframe in this test: see association.test), or after
   // wait_s: tracking_node's synchroniser may hold a frame back until the next one arrives.
   bool play(const Capture& c, bool with_static, double wait_s) {
     set_clock(c.stamp);
-    if (with_static) {
-      tf2_msgs::TFMessage s = tf_static_;
-      for (auto& t : s.transforms) t.header.stamp = c.stamp;
-      tf_static_pub_.publish(s);
-      ros::WallDuration(0.2).sleep();  // rosbag play, too, sends it ahead of the images
-    }
+    if (with_static) dqo::ros_test::publish_tf_static(tf_static_pub_, tf_static_, c.stamp);
     tf_pub_.publish(c.tf);
     det_pub_.publish(c.detections);
-    info_pub_.publish(c.info);
-    depth_pub_.publish(c.depth);
-    rgb_pub_.publish(c.rgb);
+    dqo::ros_test::publish_camera(c, info_pub_, depth_pub_, rgb_pub_);
     return wait_for([&] { return rec_.has_kf_objects(c.stamp); }, wait_s);
   }
 
   // The last capture again, later: releases whatever the synchroniser still holds. Waits for its
   // own result too, so that no keyframe of the bag arrives after the stamps that follow it.
   void drain() {
-    Capture c = captures_.back();
-    c.stamp += ros::Duration(0.1);
-    for (auto& t : c.tf.transforms) t.header.stamp = c.stamp;
-    c.rgb.header.stamp = c.depth.header.stamp = c.info.header.stamp = c.detections.header.stamp = c.stamp;
-    play(c, false, 15.0);
+    play(dqo::ros_test::restamped(captures_.back(), captures_.back().stamp + ros::Duration(0.1)), false, 15.0);
   }
 
   std::vector<dqo_map::Object> list(const std::string& class_name, bool* ok) {

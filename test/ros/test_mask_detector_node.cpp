@@ -10,6 +10,8 @@
 
 #include <dqo_map/DetectionArray.h>
 
+#include "ros_test_util.h"
+
 namespace {
 
 struct Rect {
@@ -43,10 +45,7 @@ class MaskDetectorTest : public ::testing::Test {
     pub_ = nh.advertise<sensor_msgs::Image>("/test/instance", 10);
     spinner_ = std::make_unique<ros::AsyncSpinner>(1);
     spinner_->start();
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(30.0);
-    while ((pub_.getNumSubscribers() == 0 || sub_.getNumPublishers() == 0) && ros::WallTime::now() < end) {
-      ros::WallDuration(0.01).sleep();
-    }
+    dqo::ros_test::wait_for([&] { return pub_.getNumSubscribers() > 0 && sub_.getNumPublishers() > 0; }, 30.0);
     ASSERT_GT(pub_.getNumSubscribers(), 0u) << "mask_detector_node did not connect";
   }
   void TearDown() override { spinner_->stop(); }
@@ -58,19 +57,15 @@ class MaskDetectorTest : public ::testing::Test {
   // Publishes a mask and waits for its detections (matched by stamp).
   bool round_trip(const sensor_msgs::Image& mask, dqo_map::DetectionArray* out, double wait_s = 10.0) {
     pub_.publish(mask);
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(wait_s);
-    while (ros::WallTime::now() < end) {
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        auto it = received_.find(mask.header.stamp.toSec());
-        if (it != received_.end()) {
+    return dqo::ros_test::wait_for(
+        [&] {
+          std::lock_guard<std::mutex> lock(mutex_);
+          auto it = received_.find(mask.header.stamp.toSec());
+          if (it == received_.end()) return false;
           *out = it->second;
           return true;
-        }
-      }
-      ros::WallDuration(0.01).sleep();
-    }
-    return false;
+        },
+        wait_s);
   }
 
   std::mutex mutex_;

@@ -9,10 +9,8 @@
 //   - bad input leaves the node running: an unknown encoding and a depth image of NaNs are skipped
 //     with a log line each; time going backwards (the bag looping) resets it, and keyframes keep
 //     coming with IDs that are never reused.
-#include <unistd.h>
-
 #include <cmath>
-#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -21,8 +19,6 @@
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
-#include <rosbag/bag.h>
-#include <rosbag/view.h>
 #include <rosgraph_msgs/Clock.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -34,16 +30,13 @@
 #include <dqo_map/KeyFrame.h>
 
 #include "dqo_map/common/tum_trajectory.h"
+#include "ros_test_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
-
-struct Capture {
-  ros::Time stamp;
-  sensor_msgs::Image rgb, depth;
-  sensor_msgs::CameraInfo info;
-};
+using dqo::ros_test::Capture;
+using dqo::ros_test::wait_for;
 
 dqo::SE3 to_se3(const geometry_msgs::Pose& p) {
   return dqo::SE3(Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z),
@@ -64,7 +57,7 @@ struct Recorder {
   std::vector<geometry_msgs::TransformStamped> transforms;  // /tf and /tf_static, in order
   std::map<std::string, std::set<std::string>> parents;     // child -> every parent seen
   std::set<double> tf_stamps;                               // stamps of map -> * edges
-  std::vector<std::string> node_logs;
+  dqo::ros_test::RosoutLog log{"tracking"};
   std::string state;
 
   void on_keyframe(const dqo_map::KeyFrame::ConstPtr& kf) {
@@ -79,10 +72,7 @@ struct Recorder {
       if (t.header.frame_id == "map") tf_stamps.insert(t.header.stamp.toSec());
     }
   }
-  void on_log(const rosgraph_msgs::Log::ConstPtr& log) {
-    std::lock_guard<std::mutex> lock(mutex);
-    if (log->name.find("tracking") != std::string::npos) node_logs.push_back(log->msg);
-  }
+  void on_log(const rosgraph_msgs::Log::ConstPtr& line) { log.on_log(*line); }
   void on_state(const std_msgs::String::ConstPtr& s) {
     std::lock_guard<std::mutex> lock(mutex);
     state = s->data;
@@ -95,36 +85,15 @@ struct Recorder {
     std::lock_guard<std::mutex> lock(mutex);
     return keyframes.size();
   }
-  bool logged(const std::string& needle) {
-    std::lock_guard<std::mutex> lock(mutex);
-    for (const auto& m : node_logs) {
-      if (m.find(needle) != std::string::npos) return true;
-    }
-    return false;
-  }
+  bool logged(const std::string& needle) const { return log.logged(needle); }
 };
-
-template <typename Pred>
-bool wait_for(Pred pred, double seconds) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (pred()) return true;
-    ros::WallDuration(0.005).sleep();
-  }
-  return pred();
-}
 
 class TrackingNodeTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     // One bag for all tests: rendered once.
-    dir_ = fs::temp_directory_path() / ("dqo_tracking_test_" + std::to_string(getpid()));
-    fs::create_directories(dir_);
-    const std::string cmd = std::string(DQO_MAKE_SCENE) + " " + DQO_SOURCE_DIR +
-                            "/config/scenes/tabletop.yaml " + (dir_ / "data").string() + " --bag " +
-                            (dir_ / "tabletop.bag").string() + " --frames 40 --every 3 --overwrite > " +
-                            (dir_ / "make_scene.log").string() + " 2>&1";
-    make_scene_rc_ = std::system(cmd.c_str());
+    dir_ = dqo::ros_test::make_test_dir("dqo_tracking_test_");
+    make_scene_rc_ = dqo::ros_test::render_tabletop_bag(dir_, 40, 3, "");
   }
   static void TearDownTestSuite() {
     std::error_code ec;
@@ -133,24 +102,7 @@ class TrackingNodeTest : public ::testing::Test {
 
   void SetUp() override {
     ASSERT_EQ(make_scene_rc_, 0) << "dqo_make_scene failed; see " << (dir_ / "make_scene.log");
-    rosbag::Bag bag((dir_ / "tabletop.bag").string(), rosbag::bagmode::Read);
-    std::map<ros::Time, Capture> by_stamp;
-    for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
-      if (m.getTopic() == "/tf_static") {
-        tf_static_ = *m.instantiate<tf2_msgs::TFMessage>();
-      } else if (m.getTopic() == "/rgb/image_raw") {
-        auto img = m.instantiate<sensor_msgs::Image>();
-        by_stamp[img->header.stamp].rgb = *img;
-        by_stamp[img->header.stamp].stamp = img->header.stamp;
-      } else if (m.getTopic() == "/depth_to_rgb/image_raw") {
-        auto img = m.instantiate<sensor_msgs::Image>();
-        by_stamp[img->header.stamp].depth = *img;
-      } else if (m.getTopic() == "/rgb/camera_info") {
-        auto info = m.instantiate<sensor_msgs::CameraInfo>();
-        by_stamp[info->header.stamp].info = *info;
-      }
-    }
-    for (auto& [stamp, c] : by_stamp) captures_.push_back(c);
+    captures_ = dqo::ros_test::read_captures((dir_ / "tabletop.bag").string(), &tf_static_);
     ASSERT_EQ(captures_.size(), 40u);
     ASSERT_FALSE(tf_static_.transforms.empty());
     std::string error;
@@ -188,25 +140,14 @@ class TrackingNodeTest : public ::testing::Test {
     if (spinner_) spinner_->stop();
   }
 
-  void set_clock(const ros::Time& t) {
-    rosgraph_msgs::Clock c;
-    c.clock = t;
-    clock_pub_.publish(c);
-  }
+  void set_clock(const ros::Time& t) { dqo::ros_test::set_clock(clock_pub_, t); }
 
   // Publishes one capture as the bag holds it (the static tf first, as `rosbag play` does at the
   // bag's start) and waits for the node's map edge of that stamp.
   bool play(const Capture& c, bool with_static, double wait_s = 5.0) {
     set_clock(c.stamp);
-    if (with_static) {
-      tf2_msgs::TFMessage s = tf_static_;
-      for (auto& t : s.transforms) t.header.stamp = c.stamp;
-      tf_static_pub_.publish(s);
-      ros::WallDuration(0.2).sleep();  // rosbag play, too, sends it ahead of the images
-    }
-    info_pub_.publish(c.info);
-    depth_pub_.publish(c.depth);
-    rgb_pub_.publish(c.rgb);
+    if (with_static) dqo::ros_test::publish_tf_static(tf_static_pub_, tf_static_, c.stamp);
+    dqo::ros_test::publish_camera(c, info_pub_, depth_pub_, rgb_pub_);
     return wait_for([&] { return rec_.saw_tf_at(c.stamp); }, wait_s);
   }
 
@@ -304,16 +245,12 @@ TEST_F(TrackingNodeTest, KeyframesTfAndBadInput) {
   }
 
   // ---- bad input: an unknown encoding, depth of NaNs. Skipped, logged, the node lives on.
-  Capture bad = captures_.back();
-  bad.stamp = captures_.back().stamp + ros::Duration(0.1);
-  bad.rgb.header.stamp = bad.depth.header.stamp = bad.info.header.stamp = bad.stamp;
+  Capture bad = dqo::ros_test::restamped(captures_.back(), captures_.back().stamp + ros::Duration(0.1));
   bad.rgb.encoding = "yuv422";
   EXPECT_FALSE(play(bad, false, 1.0));
   EXPECT_TRUE(wait_for([&] { return rec_.logged("yuv422"); }, 5.0)) << "no log line naming the encoding";
 
-  Capture nan_depth = captures_.back();
-  nan_depth.stamp = bad.stamp + ros::Duration(0.1);
-  nan_depth.rgb.header.stamp = nan_depth.depth.header.stamp = nan_depth.info.header.stamp = nan_depth.stamp;
+  Capture nan_depth = dqo::ros_test::restamped(captures_.back(), bad.stamp + ros::Duration(0.1));
   nan_depth.depth.encoding = "32FC1";
   nan_depth.depth.step = nan_depth.depth.width * 4;
   nan_depth.depth.data.assign(static_cast<size_t>(nan_depth.depth.step) * nan_depth.depth.height, 0);

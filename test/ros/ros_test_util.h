@@ -1,0 +1,161 @@
+#pragma once
+// What the rostests of the nodes share: a synthetic bag rendered with dqo_make_scene and read back
+// as one Capture per stamp, played into the nodes by hand (with /clock) so that each test can pace
+// the bag on the nodes' outputs instead of on wall time, and the /rosout lines that bad input must
+// leave. Header-only: each rostest is one executable, and these are a few lines each.
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <rosgraph_msgs/Clock.h>
+#include <rosgraph_msgs/Log.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <dqo_map/DetectionArray.h>
+
+namespace dqo::ros_test {
+
+// One frame of the bag: everything dqo_make_scene writes at one stamp. tf (ground truth
+// map -> camera_base) is empty unless the bag was rendered with --gt-tf.
+struct Capture {
+  ros::Time stamp;
+  sensor_msgs::Image rgb, depth;
+  sensor_msgs::CameraInfo info;
+  tf2_msgs::TFMessage tf;
+  dqo_map::DetectionArray detections;
+};
+
+// The bag's frames in stamp order (topics are interleaved in the bag, so they are gathered by their
+// headers' stamps), and its /tf_static in *tf_static.
+inline std::vector<Capture> read_captures(const std::string& bag_path, tf2_msgs::TFMessage* tf_static) {
+  rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+  std::map<ros::Time, Capture> by_stamp;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
+    if (m.getTopic() == "/tf_static") {
+      *tf_static = *m.instantiate<tf2_msgs::TFMessage>();
+    } else if (m.getTopic() == "/tf") {
+      auto tf = m.instantiate<tf2_msgs::TFMessage>();
+      by_stamp[tf->transforms.at(0).header.stamp].tf = *tf;
+    } else if (m.getTopic() == "/rgb/image_raw") {
+      auto img = m.instantiate<sensor_msgs::Image>();
+      by_stamp[img->header.stamp].rgb = *img;
+      by_stamp[img->header.stamp].stamp = img->header.stamp;
+    } else if (m.getTopic() == "/depth_to_rgb/image_raw") {
+      auto img = m.instantiate<sensor_msgs::Image>();
+      by_stamp[img->header.stamp].depth = *img;
+    } else if (m.getTopic() == "/rgb/camera_info") {
+      auto info = m.instantiate<sensor_msgs::CameraInfo>();
+      by_stamp[info->header.stamp].info = *info;
+    } else if (m.getTopic() == "/detections") {
+      auto det = m.instantiate<dqo_map::DetectionArray>();
+      by_stamp[det->header.stamp].detections = *det;
+    }
+  }
+  std::vector<Capture> captures;
+  for (auto& [stamp, c] : by_stamp) captures.push_back(c);
+  return captures;
+}
+
+// `c` moved to stamp t, every header with it: a frame the bag does not hold, for bad input and for
+// flushing the nodes' synchronisers.
+inline Capture restamped(Capture c, const ros::Time& t) {
+  c.stamp = t;
+  for (auto& tf : c.tf.transforms) tf.header.stamp = t;
+  c.rgb.header.stamp = c.depth.header.stamp = c.info.header.stamp = c.detections.header.stamp = t;
+  return c;
+}
+
+// Polls rather than waits on a condition: what the tests wait for arrives through roscpp's
+// callbacks on the spinner's threads, with nothing to notify. Returns pred() at the deadline.
+template <typename Pred>
+bool wait_for(Pred pred, double seconds) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+  while (ros::ok() && ros::WallTime::now() < end) {
+    if (pred()) return true;
+    ros::WallDuration(0.005).sleep();
+  }
+  return pred();
+}
+
+// The /rosout lines of the nodes whose name contains `node`: bad input must be skipped with a log
+// line, and these are the test's only view of that. on_log runs on the spinner's threads, logged()
+// on the test's: hence the lock.
+class RosoutLog {
+ public:
+  explicit RosoutLog(std::string node) : node_(std::move(node)) {}
+
+  void on_log(const rosgraph_msgs::Log& log) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (log.name.find(node_) != std::string::npos) lines_.push_back(log.msg);
+  }
+  bool logged(const std::string& needle) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& m : lines_) {
+      if (m.find(needle) != std::string::npos) return true;
+    }
+    return false;
+  }
+
+ private:
+  const std::string node_;
+  mutable std::mutex mutex_;
+  std::vector<std::string> lines_;
+};
+
+// A fresh folder for one test binary's bag (the PID keeps parallel runs apart).
+inline std::filesystem::path make_test_dir(const std::string& prefix) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / (prefix + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+#if defined(DQO_MAKE_SCENE) && defined(DQO_SOURCE_DIR)
+// Renders tabletop's first `frames` frames, every `every`-th, as dir/tabletop.bag (the dataset in
+// dir/data, the tool's output in dir/make_scene.log); `flags` adds dqo_make_scene options (e.g.
+// "--gt-tf"). Returns std::system's status. The two paths come from the test's target
+// (test/ros/CMakeLists.txt), hence the guard: tests without a bag include this header too.
+inline int render_tabletop_bag(const std::filesystem::path& dir, int frames, int every, const std::string& flags) {
+  const std::string cmd = std::string(DQO_MAKE_SCENE) + " " + DQO_SOURCE_DIR + "/config/scenes/tabletop.yaml " +
+                          (dir / "data").string() + " --bag " + (dir / "tabletop.bag").string() + " --frames " +
+                          std::to_string(frames) + " --every " + std::to_string(every) +
+                          (flags.empty() ? "" : " " + flags) + " --overwrite > " + (dir / "make_scene.log").string() +
+                          " 2>&1";
+  return std::system(cmd.c_str());
+}
+#endif
+
+// /clock, for nodes running on sim time (use_sim_time in the .test files).
+inline void set_clock(const ros::Publisher& clock_pub, const ros::Time& t) {
+  rosgraph_msgs::Clock c;
+  c.clock = t;
+  clock_pub.publish(c);
+}
+
+// The bag's static tf at stamp t, as `rosbag play` sends it at the bag's start.
+inline void publish_tf_static(const ros::Publisher& tf_static_pub, tf2_msgs::TFMessage tf_static, const ros::Time& t) {
+  for (auto& tf : tf_static.transforms) tf.header.stamp = t;
+  tf_static_pub.publish(tf_static);
+  ros::WallDuration(0.2).sleep();  // rosbag play, too, sends it ahead of the images
+}
+
+// A capture's camera topics (CameraInfo, depth, colour): one place, so that every test plays them
+// in the same order.
+inline void publish_camera(const Capture& c, const ros::Publisher& info_pub, const ros::Publisher& depth_pub,
+                           const ros::Publisher& rgb_pub) {
+  info_pub.publish(c.info);
+  depth_pub.publish(c.depth);
+  rgb_pub.publish(c.rgb);
+}
+
+}  // namespace dqo::ros_test
