@@ -20,12 +20,17 @@ std::optional<DualQuadric> depth_quadric(const Box2d& box, const AssociationFram
 
 std::optional<DualQuadric> box_quadric(const MapObject& object, const Box2d& box,
                                        const AssociationFrame& frame, const ViewLookup& lookup,
-                                       int max_views, const LifecycleParams& lifecycle) {
+                                       int max_views, const LifecycleParams& lifecycle,
+                                       const DualQuadric* box_depth) {
   std::vector<BoxObservation> views;
+  std::vector<DepthEvidence> evidence;
   const int want = std::max(0, max_views - 1);
   for (auto it = object.observations.rbegin();
        it != object.observations.rend() && static_cast<int>(views.size()) < want; ++it) {
-    if (auto v = lookup(*it)) views.push_back(*v);
+    if (auto v = lookup(*it)) {
+      views.push_back(*v);
+      if (frame.depth_lookup) evidence.push_back(frame.depth_lookup(*it));
+    }
   }
   BoxObservation current;
   current.P = frame.P;
@@ -36,6 +41,13 @@ std::optional<DualQuadric> box_quadric(const MapObject& object, const Box2d& box
   if (static_cast<int>(views.size()) < std::max(3, lifecycle.min_box_views)) return std::nullopt;
   const QuadricInitResult r = initialise_from_boxes(views, lifecycle.box_init);
   if (!r.ok) return std::nullopt;
+  // Departure from METHOD.md §2.4: a box-plane quadric that the depth contradicts is not compared
+  // (the depth ellipsoid of the detection is, by the caller); see LifecycleParams.
+  if (lifecycle.max_depth_disagreement > 0.0) {
+    if (box_depth) evidence.push_back({frame.T_wc.inverse(), box_depth});
+    const double disagreement = depth_disagreement(r.quadric, evidence);
+    if (disagreement > lifecycle.max_depth_disagreement) return std::nullopt;
+  }
   return r.quadric;
 }
 
@@ -44,8 +56,10 @@ std::optional<DualQuadric> box_quadric(const MapObject& object, const Box2d& box
 std::optional<DualQuadric> observation_quadric(const MapObject& object, const Box2d& box,
                                                const AssociationFrame& frame,
                                                const ViewLookup& lookup, int max_views,
-                                               const LifecycleParams& lifecycle) {
-  if (auto q = box_quadric(object, box, frame, lookup, max_views, lifecycle)) return q;
+                                               const LifecycleParams& lifecycle,
+                                               const DualQuadric* box_depth) {
+  if (auto q = box_quadric(object, box, frame, lookup, max_views, lifecycle, box_depth)) return q;
+  if (box_depth && lifecycle.single_view_fallback) return *box_depth;
   return depth_quadric(box, frame, lifecycle);
 }
 
@@ -61,6 +75,9 @@ AssociationResult associate(const std::vector<AssociationTrack>& tracks,
 
   // The detection's own depth ellipsoid is the same for every object: build it at most once.
   std::vector<std::optional<std::optional<DualQuadric>>> depth_cache(detections.size());
+  if (frame.detection_depth && frame.detection_depth->size() == detections.size()) {
+    for (size_t d = 0; d < detections.size(); ++d) depth_cache[d] = (*frame.detection_depth)[d];
+  }
   Eigen::MatrixXd scores =
       Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(tracks.size()),
                                 static_cast<Eigen::Index>(detections.size()), kForbidden);
@@ -84,9 +101,19 @@ AssociationResult associate(const std::vector<AssociationTrack>& tracks,
             return *cached;
           };
           std::optional<DualQuadric> observed;
-          if (params.fine_quadric == FineQuadric::kDepth) observed = depth_of_detection();
-          if (!observed) observed = box_quadric(object, det.box, frame, lookup, params.max_init_views, lifecycle);
-          if (!observed && params.fine_quadric == FineQuadric::kBoxes) observed = depth_of_detection();
+          if (params.fine_quadric == FineQuadric::kDepth && lifecycle.single_view_fallback) {
+            observed = depth_of_detection();
+          }
+          if (!observed) {
+            const std::optional<DualQuadric> depth = lifecycle.max_depth_disagreement > 0.0
+                                                         ? depth_of_detection()
+                                                         : std::nullopt;
+            observed = box_quadric(object, det.box, frame, lookup, params.max_init_views, lifecycle,
+                                   depth ? &*depth : nullptr);
+          }
+          if (!observed && params.fine_quadric == FineQuadric::kBoxes && lifecycle.single_view_fallback) {
+            observed = depth_of_detection();
+          }
           ++result.fine_inits;
           if (!observed) {
             if (!use_iou) continue;  // qd alone has nothing to go on

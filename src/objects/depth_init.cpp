@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace dqo::objects {
@@ -80,6 +81,21 @@ QuadricInitResult initialise_from_depth_robust(const Box2d& box, const PinholeCa
   r.quadric = DualQuadric::from_params(T_wc * centre_c, T_wc.rotation(), axes);
   r.num_depth_samples = static_cast<int>(object.size());
   return r;
+}
+
+double depth_disagreement(const DualQuadric& quadric, const std::vector<DepthEvidence>& evidence) {
+  std::vector<double> residuals;
+  for (const DepthEvidence& e : evidence) {
+    if (e.depth == nullptr) continue;
+    const Eigen::Vector3d axis = e.T_cw.rotation().row(2).transpose();  // optical axis in world
+    const Eigen::Matrix3d S = e.depth->shape_matrix();
+    const double half_depth = std::sqrt(std::max(0.0, axis.dot(S * axis)));
+    const double z_q = (e.T_cw * quadric.centre()).z();
+    const double z_d = (e.T_cw * e.depth->centre()).z();
+    residuals.push_back(std::abs(z_q - z_d) / (half_depth + 0.05));
+  }
+  if (residuals.empty()) return std::numeric_limits<double>::quiet_NaN();
+  return quantile(residuals, 0.5);
 }
 
 }  // namespace dqo::objects

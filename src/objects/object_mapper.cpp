@@ -4,8 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <set>
-#include <cstdio>
-#include <cstdlib>
 
 #include "association.h"
 #include "box_fit.h"
@@ -52,6 +50,7 @@ struct ObjectMapper::Impl {
   std::map<KeyFrameId, KeyframeRecord> keyframes;
   std::map<int, std::string> class_names;
 
+  // The depth ellipsoid of an observation's detection, found by its box in its keyframe.
   const DualQuadric* depth_of(const ObjectObservation& o) const {
     const auto it = keyframes.find(o.keyframe_id);
     if (it == keyframes.end()) return nullptr;
@@ -62,6 +61,15 @@ struct ObjectMapper::Impl {
       }
     }
     return nullptr;
+  }
+
+  DepthEvidence evidence_of(const ObjectObservation& o) const {
+    DepthEvidence e;
+    const auto it = keyframes.find(o.keyframe_id);
+    if (it == keyframes.end()) return e;
+    e.T_cw = it->second.T_wc.inverse();
+    e.depth = depth_of(o);
+    return e;
   }
 
   std::optional<BoxObservation> view_of(const ObjectObservation& o) const {
@@ -94,30 +102,19 @@ struct ObjectMapper::Impl {
     const std::vector<BoxObservation> views = views_of(*object, params.refinement.max_views);
     if (static_cast<int>(views.size()) < params.lifecycle.min_box_views) return;
     const QuadricInitResult r = initialise_from_boxes(views, params.lifecycle.box_init);
-    if (std::getenv("DQO_DEBUG_GT")) {
-      std::fprintf(stderr, "DBG   boxinit obj %llu views %zu status %s planes %d sr %.3f base %.3f err %.1f c %.2f %.2f %.2f a %.2f %.2f %.2f\n",
-                   (unsigned long long)object->id, views.size(), to_string(r.status), r.num_planes, r.singular_ratio,
-                   r.baseline_ratio, r.mean_edge_error_px, r.quadric.centre().x(), r.quadric.centre().y(),
-                   r.quadric.centre().z(), r.quadric.semi_axes().x(), r.quadric.semi_axes().y(), r.quadric.semi_axes().z());
-      for (const auto& ob : object->observations) {
-        const DualQuadric* dq = depth_of(ob);
-        if (!dq) continue;
-        const SE3 T_cw = keyframes.at(ob.keyframe_id).T_wc.inverse();
-        const Eigen::Vector3d r3 = T_cw.rotation().row(2).transpose();
-        const double zq = (T_cw * r.quadric.centre()).z(), zd = (T_cw * dq->centre()).z(), z0 = (T_cw * object->quadric.centre()).z();
-        const Eigen::Matrix3d Sq = r.quadric.rotation() * r.quadric.semi_axes().cwiseAbs2().asDiagonal() * r.quadric.rotation().transpose();
-        std::fprintf(stderr, "DBG     depth kf %llu zd %.2f cd %.2f zq %.2f sq %.2f zold %.2f\n", (unsigned long long)ob.keyframe_id, zd, dq->semi_axes().z(), zq, std::sqrt(r3.dot(Sq * r3)), z0);
-      }
-      for (const auto& v : views) {
-        const auto b = conic_bounding_box(project_quadric(r.quadric, v.P));
-        const auto b0 = conic_bounding_box(project_quadric(object->quadric, v.P));
-        std::fprintf(stderr, "DBG     view obs [%.0f %.0f %.0f %.0f] new [%.0f %.0f %.0f %.0f] old [%.0f %.0f %.0f %.0f]\n",
-                     v.box.x_min, v.box.y_min, v.box.x_max, v.box.y_max, b ? b->x_min : -1, b ? b->y_min : -1,
-                     b ? b->x_max : -1, b ? b->y_max : -1, b0 ? b0->x_min : -1, b0 ? b0->y_min : -1, b0 ? b0->x_max : -1,
-                     b0 ? b0->y_max : -1);
+    if (!r.ok || !r.quadric.is_valid()) return;
+    // Departure from METHOD.md §1 (LifecycleParams::max_depth_disagreement): a box-plane quadric
+    // that the observations' depth contradicts does not replace an ellipsoid the depth agrees with
+    // better; the object keeps that one (refined by the IoU loss) and tries again with more views.
+    if (params.lifecycle.max_depth_disagreement > 0.0 && object->has_quadric) {
+      std::vector<DepthEvidence> evidence;
+      for (const ObjectObservation& o : object->observations) evidence.push_back(evidence_of(o));
+      const double boxes = depth_disagreement(r.quadric, evidence);
+      if (boxes > params.lifecycle.max_depth_disagreement &&
+          boxes > depth_disagreement(object->quadric, evidence)) {
+        return;
       }
     }
-    if (!r.ok || !r.quadric.is_valid()) return;
     object->quadric = r.quadric;
     object->has_quadric = true;
     object->from_boxes = true;
@@ -230,11 +227,18 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     if (filtered.rejected[i]) out.verdicts[i] = *filtered.rejected[i];
   }
   for (const int i : filtered.kept) dets.push_back(kf.detections[static_cast<size_t>(i)]);
-  if (kf.depth.data != nullptr) {
-    for (const Detection2d& d : dets) {
-      const QuadricInitResult r =
-          initialise_from_depth_robust(d.box, kf.camera, kf.T_wc, kf.depth, params.lifecycle.depth_init);
-      if (r.ok && r.quadric.is_valid()) record.depth_quadrics.emplace_back(d.box, r.quadric);
+  // The detections' single-view depth ellipsoids: the fallback's initialisation of new objects,
+  // the fine step's depth quadric, and (kept with the keyframe) the depth evidence of the
+  // observations for the depth check of box-plane quadrics.
+  std::vector<std::optional<DualQuadric>> det_depth(dets.size());
+  if (kf.depth.data != nullptr &&
+      (params.lifecycle.single_view_fallback || params.lifecycle.max_depth_disagreement > 0.0)) {
+    for (size_t d = 0; d < dets.size(); ++d) {
+      const QuadricInitResult r = initialise_from_depth_robust(dets[d].box, kf.camera, kf.T_wc, kf.depth,
+                                                               params.lifecycle.depth_init);
+      if (!r.ok || !r.quadric.is_valid()) continue;
+      det_depth[d] = r.quadric;
+      record.depth_quadrics.emplace_back(dets[d].box, r.quadric);
     }
   }
 
@@ -267,6 +271,8 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
   frame.T_wc = kf.T_wc;
   frame.P = record.P;
   frame.depth = kf.depth;
+  frame.detection_depth = &det_depth;
+  frame.depth_lookup = [this](const ObjectObservation& o) { return evidence_of(o); };
   const ViewLookup lookup = [this](const ObjectObservation& o) { return view_of(o); };
   const AssociationResult assoc =
       associate(tracks, dets, frame, lookup, params.association, params.lifecycle);
@@ -297,13 +303,11 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     const size_t input = static_cast<size_t>(filtered.kept[d]);
     MapObject o;
     if (kf.depth.data != nullptr && params.lifecycle.single_view_fallback) {
-      const QuadricInitResult r = initialise_from_depth_robust(dets[d].box, kf.camera, kf.T_wc, kf.depth,
-                                                        params.lifecycle.depth_init);
-      if (!r.ok || !r.quadric.is_valid()) {
+      if (!det_depth[d]) {
         out.verdicts[input] = DetectionVerdict::kNoInit;
         continue;
       }
-      o.quadric = r.quadric;
+      o.quadric = *det_depth[d];
       o.has_quadric = true;
     }
     o.id = next_id++;
@@ -385,43 +389,6 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
 
   // 7. Refinement of the objects seen, over every keyframe that saw them, and their boxes.
   refine_seen(seen, &out);
-  // DEBUG-TMP
-  static const char* dbg = std::getenv("DQO_DEBUG_GT");
-  if (dbg) {
-    static std::set<ObjectId> tracked;
-    const uint32_t gt = static_cast<uint32_t>(std::atoi(dbg));
-    for (size_t i = 0; i < n_in; ++i) {
-      const Detection2d& d = kf.detections[i];
-      if (d.gt_id != gt) continue;
-      std::fprintf(stderr, "DBG kf %llu seq %llu det [%.0f %.0f %.0f %.0f] cls %d verdict %d obj %llu\n",
-                   (unsigned long long)kf.id, (unsigned long long)record.sequence, d.box.x_min, d.box.y_min,
-                   d.box.x_max, d.box.y_max, d.class_id, (int)out.verdicts[i], (unsigned long long)out.object_ids[i]);
-      if (out.object_ids[i]) tracked.insert(out.object_ids[i]);
-    }
-    for (const auto& e : out.events) {
-      if (tracked.count(e.id) || tracked.count(e.into_id))
-        std::fprintf(stderr, "DBG   event %d id %llu into %llu\n", (int)e.type, (unsigned long long)e.id, (unsigned long long)e.into_id);
-    }
-    for (const ObjectId id : tracked) {
-      auto it = objects.find(id);
-      if (it == objects.end()) continue;
-      const MapObject& o = it->second;
-      const Eigen::Vector3d c = o.quadric.centre();
-      const Eigen::Vector3d a = o.quadric.semi_axes();
-      std::fprintf(stderr, "DBG   obj %llu st %d cls %d nobs %zu boxes %d missed %d c %.2f %.2f %.2f a %.2f %.2f %.2f seen %d\n",
-                   (unsigned long long)id, (int)o.state, o.class_id, o.observations.size(), (int)o.from_boxes, o.missed,
-                   c.x(), c.y(), c.z(), a.x(), a.y(), a.z(), (int)seen.count(id));
-      const auto pb = projected_box(o.quadric, kf.camera, T_cw, 0.05);
-      if (pb) {
-        std::fprintf(stderr, "DBG     proj [%.0f %.0f %.0f %.0f] frac %.2f", pb->unclipped.x_min, pb->unclipped.y_min,
-                     pb->unclipped.x_max, pb->unclipped.y_max, pb->fraction_in_image);
-        for (size_t i = 0; i < n_in; ++i) {
-          if (kf.detections[i].gt_id == gt) std::fprintf(stderr, " iou %.2f", iou(pb->box, kf.detections[i].box));
-        }
-        std::fprintf(stderr, "\n");
-      }
-    }
-  }
   return out;
 }
 

@@ -92,6 +92,7 @@ Section schema(ObjectMapperParams& p) {
                           {"candidate_max_age_keyframes", &l.candidate_max_age_keyframes, 1, 100000000},
                           {"remove_after_missed", &l.remove_after_missed, 0, 100000000},
                           {"min_box_views", &l.min_box_views, 3, 1000},
+                          {"max_depth_disagreement", &l.max_depth_disagreement, 0.0, kInf},
                           {"single_view_fallback", &l.single_view_fallback},
                       },
                       {

@@ -91,6 +91,55 @@ TEST(ObjectMapper, NoiseFreeMultiViewInitialisationIsExact) {
   }
 }
 
+// Boxes that box planes explain by an ellipsoid far behind where the depth images put the object
+// (views from a narrow range of directions leave the position along the rays to the boxes' small
+// differences): with the depth check (LifecycleParams::max_depth_disagreement) the mapper keeps
+// the depth-consistent ellipsoid near the ground truth; without it the box-plane ellipsoid
+// replaces it (the check is what makes the difference).
+TEST(ObjectMapper, DepthContradictedBoxPlaneQuadricDoesNotReplaceTheDepthEllipsoid) {
+  const DualQuadric gt = gt_ellipsoid();
+  const PinholeCamera camera = test_camera();
+  // Cameras on an arc of ±0.08 rad, 1.4 m from the object (baseline ratio 0.15); the boxes are
+  // those of the ground truth scaled by 1.6 about the middle camera (the same silhouette there,
+  // 0.84 m deeper).
+  std::vector<SE3> poses;
+  for (int k = 0; k < 5; ++k) {
+    const double a = -0.08 + 0.04 * k;
+    poses.push_back(look_at(gt.centre() + Eigen::Vector3d(1.4 * std::cos(a), 1.4 * std::sin(a), 0.5), gt.centre()));
+  }
+  const Eigen::Vector3d eye = poses[2].translation();
+  const DualQuadric wrong = DualQuadric::from_params(eye + 1.6 * (gt.centre() - eye), gt.rotation(),
+                                                     1.6 * gt.semi_axes());
+  auto run = [&](double max_depth_disagreement) {
+    ObjectMapperParams params;
+    params.refine = false;  // the initialisation alone
+    params.box_fit.enabled = false;
+    params.lifecycle.max_depth_disagreement = max_depth_disagreement;
+    ObjectMapper mapper(params);
+    for (size_t k = 0; k < poses.size(); ++k) {
+      ObjectKeyFrame kf = keyframe(static_cast<KeyFrameId>(k + 1), poses[k], camera);
+      const DepthImage depth = render_depth({gt}, camera, kf.T_wc);
+      kf.depth = test::view_of(depth);
+      const auto box = exact_box(wrong, camera, kf.T_wc);
+      EXPECT_TRUE(box);
+      if (!box) continue;
+      kf.detections.push_back(detection(*box));
+      std::string error;
+      mapper.process_keyframe(kf, &error);
+      EXPECT_TRUE(error.empty()) << error;
+    }
+    return mapper.objects();
+  };
+  const std::vector<MapObject> checked = run(1.0);
+  ASSERT_EQ(checked.size(), 1u);
+  EXPECT_FALSE(checked[0].from_boxes);
+  EXPECT_LT((checked[0].quadric.centre() - gt.centre()).norm(), 0.15);
+  const std::vector<MapObject> unchecked = run(0.0);
+  ASSERT_EQ(unchecked.size(), 1u);
+  EXPECT_TRUE(unchecked[0].from_boxes);
+  EXPECT_GT((unchecked[0].quadric.centre() - gt.centre()).norm(), 0.5);
+}
+
 // A sofa-like object first seen only in part (the rest hidden), later whole: two objects, then
 // one, with a MERGED event of the piece into the whole.
 TEST(ObjectMapper, MergeJoinsThePiecesOfAnOccludedObject) {

@@ -77,6 +77,15 @@ struct LifecycleParams {
   // with a detector's 10 % misses, 8 misses in a row of a right object is rare).
   int remove_after_missed = 8;
   int min_box_views = 3;               // box-plane initialisation needs this many views
+  // Depth check of box-plane quadrics (not in METHOD.md; src/objects/depth_init.h): where the
+  // observations have depth, a box-plane quadric whose centre lies further than this from where the
+  // depth puts the object (depth_disagreement: median over the views, in units of the depth
+  // ellipsoid's half depth + 5 cm) does not replace an ellipsoid that agrees better with the depth,
+  // and the fine step compares the detection's depth ellipsoid instead. Box planes from a few
+  // directions leave the position along the rays free (room: the second table's ellipsoid from
+  // seven boxes lay 1 m behind the measured surface and 0.45 m too low; it replaced a right one and
+  // then rejected the right detections: 20/21, 1 spurious). 0 = off.
+  double max_depth_disagreement = 1.0;
   bool single_view_fallback = true;    // depth initialisation while fewer views (needs depth)
   InitParams box_init;
   DepthInitParams depth_init;
