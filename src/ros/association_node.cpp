@@ -1,16 +1,16 @@
 // association_node: the ROS skin of the object stage (dqo::objects::ObjectMapper). Pairs keyframes
-// with the detections of their images by stamp, maps raw detection boxes through the camera's
-// undistortion, feeds the mapper, and publishes objects, rviz markers, object events and which
-// detection became which object; serves list_objects; keeps the object state file (IDs are never
-// reused, also across restarts). No object maths lives here. Parameters: config/association.yaml
-// (this node) and config/objects.yaml (~objects, the core's), loaded by launch/association.launch.
+// with the detections of their images by stamp (dqo::objects::StampMatcher), maps raw detection
+// boxes through the camera's undistortion, feeds the mapper, and publishes objects, rviz markers,
+// object events and which detection became which object; serves list_objects; keeps the object
+// state file (IDs are never reused, also across restarts). No object maths lives here.
+// Parameters: config/association.yaml (this node) and config/objects.yaml (~objects, the core's),
+// loaded by launch/association.launch.
 //
 // Bad input never stops the node: unusable boxes (NaN, negative size, outside the image, too many)
 // are rejected by the core and counted in a throttled log line; keyframes whose detections never
 // come, detections that match no keyframe, unsupported depth, a missing camera_info are logged and
 // skipped; time going backwards (a looping bag) clears the buffers.
 #include <cstdlib>
-#include <deque>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -33,6 +33,7 @@
 
 #include "conversions.h"
 #include "dqo_map/objects/object_mapper.h"
+#include "dqo_map/objects/stamp_matcher.h"
 #include "object_conversions.h"
 #include "object_ros_params.h"
 #include "ros_params.h"
@@ -65,10 +66,9 @@ class AssociationNode {
   void on_camera_info(const sensor_msgs::CameraInfoConstPtr& info);
   void on_poses(const dqo_map::KeyFramePosesConstPtr& poses);
   bool on_list(dqo_map::ListObjects::Request& req, dqo_map::ListObjects::Response& res);
-  // A stamp older than the newest one seen on its stream: a bag looped. Clears the buffers.
-  void check_time(const ros::Time& stamp, ros::Time* last, const char* stream);
+  void log_reset(const std::optional<objects::StampReset>& reset, const char* stream);
   void match();
-  void process(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det);
+  void process(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det, const std::optional<SE3>& early_pose);
   void publish(const std_msgs::Header& header, const objects::KeyFrameAssociation& result);
   bool throttled(const std::string& kind, double period = 5.0);
 
@@ -83,11 +83,8 @@ class AssociationNode {
 
   std::optional<tracking::CameraCalibration> calibration_;
   std::optional<tracking::Undistorter> undistorter_;
-  std::deque<dqo_map::KeyFrameConstPtr> keyframes_;  // waiting for detections, ascending stamps
-  std::map<ros::Time, dqo_map::DetectionArrayConstPtr> detections_;
-  std::map<objects::KeyFrameId, SE3> early_poses_;  // corrections of keyframes still buffered
-  ros::Time newest_, last_kf_stamp_, last_det_stamp_;
-  uint64_t unmatched_detections_ = 0, unmatched_keyframes_ = 0;
+  using Matcher = objects::StampMatcher<dqo_map::KeyFrameConstPtr, dqo_map::DetectionArrayConstPtr>;
+  std::optional<Matcher> matcher_;  // pairs keyframes with their detections by stamp
   std::map<std::string, ros::WallTime> last_complaint_;
 };
 
@@ -146,6 +143,7 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
              state_path_.c_str(), static_cast<unsigned long long>(mapper->next_id()));
   }
   mapper_ = std::move(mapper);
+  matcher_.emplace(objects::StampMatcherParams{p_.stamp_tolerance, p_.buffer_seconds});
 
   objects_pub_ = nh_.advertise<dqo_map::ObjectArray>("objects", 10, /*latch=*/true);
   markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>("object_markers", 10, /*latch=*/true);
@@ -165,28 +163,19 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
            det_sub_.getTopic().c_str(), boxes.c_str(), state_path_.c_str());
 }
 
-void AssociationNode::check_time(const ros::Time& stamp, ros::Time* last, const char* stream) {
-  if (!last->isZero() && stamp < *last) {
-    ROS_WARN("association: %s time went back by %.3f s (a looping bag?): %zu keyframes and %zu detection arrays "
-             "dropped from the buffers", stream, (*last - stamp).toSec(), keyframes_.size(), detections_.size());
-    keyframes_.clear();
-    detections_.clear();
-    early_poses_.clear();
-    last_kf_stamp_ = last_det_stamp_ = newest_ = ros::Time();
-  }
-  *last = stamp;
-  if (stamp > newest_) newest_ = stamp;
+void AssociationNode::log_reset(const std::optional<objects::StampReset>& reset, const char* stream) {
+  if (!reset) return;
+  ROS_WARN("association: %s time went back by %.3f s (a looping bag?): %zu keyframes and %zu detection arrays "
+           "dropped from the buffers", stream, reset->back_by, reset->dropped_keyframes, reset->dropped_detections);
 }
 
 void AssociationNode::on_keyframe(const dqo_map::KeyFrameConstPtr& kf) {
-  check_time(kf->header.stamp, &last_kf_stamp_, "keyframe");
-  keyframes_.push_back(kf);
+  log_reset(matcher_->add_keyframe(kf->header.stamp.toSec(), kf->id, kf), "keyframe");
   match();
 }
 
 void AssociationNode::on_detections(const dqo_map::DetectionArrayConstPtr& det) {
-  check_time(det->header.stamp, &last_det_stamp_, "detection");
-  detections_[det->header.stamp] = det;
+  log_reset(matcher_->add_detections(det->header.stamp.toSec(), det), "detection");
   match();
 }
 
@@ -208,70 +197,46 @@ void AssociationNode::on_poses(const dqo_map::KeyFramePosesConstPtr& poses) {
   std::map<objects::KeyFrameId, SE3> by_id;
   for (size_t i = 0; i < poses->ids.size(); ++i) by_id[poses->ids[i]] = from_pose_msg(poses->poses[i]);
   mapper_->update_keyframe_poses(by_id);
-  for (const auto& kf : keyframes_) {
-    if (by_id.count(kf->id)) early_poses_[kf->id] = by_id[kf->id];
-  }
+  matcher_->correct_poses(by_id);  // keyframes still waiting get theirs when processed
 }
 
-// Keyframes are processed in stamp order: the oldest waits for its detections (or expires) before
-// any newer one is processed, so the result does not depend on the detector's latency.
+// The matcher decides (in stamp order, see stamp_matcher.h); this logs and processes what it hands out.
 void AssociationNode::match() {
-  const ros::Duration tol(p_.stamp_tolerance), keep(p_.buffer_seconds);
-  while (!keyframes_.empty()) {
-    const dqo_map::KeyFrameConstPtr kf = keyframes_.front();
-    const ros::Time t = kf->header.stamp;
-    // ros::Time cannot go below zero (it throws): clamp the window's start.
-    auto it = detections_.lower_bound(t.toSec() > tol.toSec() ? t - tol : ros::Time());
-    const bool found = it != detections_.end() && it->first <= t + tol;
-    const bool no_camera = !p_.detections_rectified && !undistorter_;
-    if (found && !no_camera) {
-      auto next = std::next(it);  // the nearer of two candidates within the tolerance
-      if (next != detections_.end() && next->first <= t + tol && (next->first - t).toSec() < (t - it->first).toSec()) it = next;
+  using Kind = Matcher::Step::Kind;
+  const bool no_camera = !p_.detections_rectified && !undistorter_;
+  const Matcher::MatchResult result = matcher_->match(!no_camera);
+  for (const Matcher::Step& step : result.steps) {
+    if (step.kind == Kind::kMatched) {
       // Whatever a keyframe holds, the node keeps running: anything thrown skips this keyframe.
       try {
-        process(*kf, *it->second);
+        process(*step.keyframe, *step.detections, step.early_pose);
       } catch (const std::exception& e) {
         if (!throttled("exception")) ROS_ERROR("association: keyframe %llu failed: %s: skipped",
-                                               static_cast<unsigned long long>(kf->id), e.what());
+                                               static_cast<unsigned long long>(step.id), e.what());
       }
-      detections_.erase(it);
-      early_poses_.erase(kf->id);
-      keyframes_.pop_front();
       continue;
     }
+    const bool found = step.kind == Kind::kHeld || step.had_detections;
     if (found && !throttled("camera_info")) {
       ROS_WARN("association: no usable camera_info on %s yet: keyframes wait (raw boxes must be undistorted; set "
                "detections_rectified if they are not raw)", info_sub_.getTopic().c_str());
     }
-    if (newest_ - t <= keep) break;
-    ++unmatched_keyframes_;
-    if (!throttled("unmatched_keyframe")) {
-      const std::string why = found ? "had detections but no usable camera_info arrived on " + info_sub_.getTopic()
-                                    : "got no detections on " + det_sub_.getTopic() + " within " +
-                                          std::to_string(p_.stamp_tolerance) + " s of its stamp";
-      ROS_WARN("association: keyframe %llu at %.6f %s within %.1f s: skipped (%llu so far)",
-               static_cast<unsigned long long>(kf->id), t.toSec(), why.c_str(), p_.buffer_seconds,
-               static_cast<unsigned long long>(unmatched_keyframes_));
-    }
-    early_poses_.erase(kf->id);
-    keyframes_.pop_front();
+    if (step.kind != Kind::kExpired || throttled("unmatched_keyframe")) continue;
+    const std::string why = found ? "had detections but no usable camera_info arrived on " + info_sub_.getTopic()
+                                  : "got no detections on " + det_sub_.getTopic() + " within " +
+                                        std::to_string(p_.stamp_tolerance) + " s of its stamp";
+    ROS_WARN("association: keyframe %llu at %.6f %s within %.1f s: skipped (%llu so far)",
+             static_cast<unsigned long long>(step.id), step.stamp, why.c_str(), p_.buffer_seconds,
+             static_cast<unsigned long long>(step.expired_total));
   }
-  // Detections no keyframe can claim any more: older than the oldest waiting keyframe (keyframes
-  // come in stamp order), or than the buffer. Most are of frames that were not keyframes.
-  const ros::Time oldest_kf = keyframes_.empty() ? last_kf_stamp_ : keyframes_.front()->header.stamp;
-  while (!detections_.empty()) {
-    const ros::Time d = detections_.begin()->first;
-    if (!(d + tol < oldest_kf) && !(newest_ - d > keep)) break;
-    detections_.erase(detections_.begin());
-    ++unmatched_detections_;
-  }
-  if (unmatched_detections_ > 0 && !throttled("unmatched_detections", 30.0)) {
+  if (result.dropped_detections_total > 0 && !throttled("unmatched_detections", 30.0)) {
     ROS_INFO("association: %llu detection arrays matched no keyframe so far (expected for frames that are not "
-             "keyframes)", static_cast<unsigned long long>(unmatched_detections_));
+             "keyframes)", static_cast<unsigned long long>(result.dropped_detections_total));
   }
 }
 
-void AssociationNode::process(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det) {
+void AssociationNode::process(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det,
+                              const std::optional<SE3>& early_pose) {
   objects::ObjectKeyFrame okf;
   DepthImage depth;
   InstanceImage instance;
@@ -285,8 +250,7 @@ void AssociationNode::process(const dqo_map::KeyFrame& kf, const dqo_map::Detect
   for (const std::string& w : warnings) {
     if (!throttled(w.substr(0, 20))) ROS_WARN("association: keyframe %llu: %s", static_cast<unsigned long long>(kf.id), w.c_str());
   }
-  const auto early = early_poses_.find(kf.id);  // corrected by bundle adjustment while it waited
-  if (early != early_poses_.end()) okf.T_wc = early->second;
+  if (early_pose) okf.T_wc = *early_pose;  // corrected by bundle adjustment while it waited
   error.clear();
   const objects::KeyFrameAssociation result = mapper_->process_keyframe(okf, &error);
   if (!error.empty()) {
