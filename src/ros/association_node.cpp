@@ -48,6 +48,7 @@ struct NodeParams {
   std::string map_frame = "map";
   double stamp_tolerance = 0.002;  // seconds between a keyframe's and its detections' stamps
   double buffer_seconds = 5.0;     // how long either side waits for the other (detector latency)
+  double max_reorder_seconds = 1.0;  // detection arrays this far out of order are not a looping bag
   bool detections_rectified = false;  // true: boxes already refer to the rectified image
   bool publish_tf = false;         // map -> object_<id> per confirmed object
   std::string output_dir;          // empty: $ROS_HOME/dqo_map, else ~/.ros/dqo_map
@@ -101,19 +102,20 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
   pnh_.param("map_frame", p_.map_frame, p_.map_frame);
   pnh_.param("stamp_tolerance", p_.stamp_tolerance, p_.stamp_tolerance);
   pnh_.param("buffer_seconds", p_.buffer_seconds, p_.buffer_seconds);
+  pnh_.param("max_reorder_seconds", p_.max_reorder_seconds, p_.max_reorder_seconds);
   pnh_.param("detections_rectified", p_.detections_rectified, p_.detections_rectified);
   pnh_.param("publish_tf", p_.publish_tf, p_.publish_tf);
   pnh_.param("output_dir", p_.output_dir, p_.output_dir);
   pnh_.param("state_file", p_.state_file, p_.state_file);
   pnh_.param("queue_size", p_.queue_size, p_.queue_size);
-  const std::set<std::string> known = {"map_frame",  "stamp_tolerance", "buffer_seconds", "detections_rectified",
+  const std::set<std::string> known = {"map_frame",  "stamp_tolerance", "buffer_seconds", "max_reorder_seconds", "detections_rectified",
                                        "publish_tf", "output_dir",      "state_file",     "queue_size", "objects"};
   for (const std::string& name : unknown_private_params(pnh_, known)) {
     ROS_WARN("association: ignoring unknown parameter %s/%s", pnh_.getNamespace().c_str(), name.c_str());
   }
-  if (p_.stamp_tolerance < 0.0 || p_.buffer_seconds <= 0.0 || p_.queue_size < 1 || p_.state_file.empty() ||
+  if (p_.stamp_tolerance < 0.0 || p_.buffer_seconds <= 0.0 || p_.max_reorder_seconds < 0.0 || p_.queue_size < 1 || p_.state_file.empty() ||
       fs::path(p_.state_file).has_parent_path()) {
-    ROS_FATAL("association: stamp_tolerance must be >= 0, buffer_seconds > 0, queue_size >= 1, state_file a "
+    ROS_FATAL("association: stamp_tolerance must be >= 0, buffer_seconds > 0, max_reorder_seconds >= 0, queue_size >= 1, state_file a "
               "plain file name");
     return;
   }
@@ -143,7 +145,7 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
              state_path_.c_str(), static_cast<unsigned long long>(mapper->next_id()));
   }
   mapper_ = std::move(mapper);
-  matcher_.emplace(objects::StampMatcherParams{p_.stamp_tolerance, p_.buffer_seconds});
+  matcher_.emplace(objects::StampMatcherParams{p_.stamp_tolerance, p_.buffer_seconds, p_.max_reorder_seconds});
 
   objects_pub_ = nh_.advertise<dqo_map::ObjectArray>("objects", 10, /*latch=*/true);
   markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>("object_markers", 10, /*latch=*/true);

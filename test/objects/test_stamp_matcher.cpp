@@ -135,13 +135,30 @@ TEST(StampMatcher, KeyframesInStampOrderWhenNewerDetectionsComeFirst) {
   EXPECT_EQ(matched(r), (Pairs{{2, 20}}));
 }
 
-TEST(StampMatcher, DetectionsOutOfOrderAreTimeGoingBack) {
-  // Arrays come in stamp order from one detector: an older one means the bag looped.
+TEST(StampMatcher, DetectionsSlightlyOutOfOrderAreBuffered) {
+  // A detector with several workers publishes out of order: within max_reorder_seconds (1 s by
+  // default) that is no loop, and each keyframe still gets its own array.
   Matcher m = make_matcher();
   add_kf(m, 10.0, 1);
   add_kf(m, 10.1, 2);
   EXPECT_FALSE(add_det(m, 10.1, 20));
-  const auto reset = add_det(m, 10.0, 10);
+  EXPECT_FALSE(add_det(m, 10.0, 10));
+  EXPECT_EQ(matched(m.match(true)), (Pairs{{1, 10}, {2, 20}}));
+  // The stream's newest stamp stays 10.1: 9.2 is 0.9 s behind it (buffered, and dropped as
+  // unclaimable since no keyframe waits that early), 9.0 is 1.1 s behind it (a loop).
+  EXPECT_FALSE(add_det(m, 9.2, 30));
+  EXPECT_EQ(m.match(true).dropped_detections, 1u);
+  const auto reset = add_det(m, 9.0, 40);
+  ASSERT_TRUE(reset);
+  EXPECT_NEAR(reset->back_by, 1.1, 1e-12);
+}
+
+TEST(StampMatcher, DetectionsFarOutOfOrderAreTimeGoingBack) {
+  Matcher m = make_matcher();
+  add_kf(m, 10.0, 1);
+  add_kf(m, 12.0, 2);
+  EXPECT_FALSE(add_det(m, 12.0, 20));
+  const auto reset = add_det(m, 10.0, 10);  // 2 s back: the bag looped
   ASSERT_TRUE(reset);
   EXPECT_EQ(reset->dropped_keyframes, 2u);
   EXPECT_EQ(reset->dropped_detections, 1u);

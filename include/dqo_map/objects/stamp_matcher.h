@@ -9,7 +9,10 @@
 //  - waiting is bounded in message time, not wall time (a bag may play faster or slower):
 //    a keyframe expires once a stamp `buffer_seconds` newer has been seen on either stream;
 //  - arrays no keyframe can claim any more are dropped and counted;
-//  - a stamp older than the newest of its stream means a looping bag: everything buffered goes;
+//  - a keyframe stamp older than the newest keyframe's, or a detection stamp more than
+//    `max_reorder_seconds` older than the newest detection's, means a looping bag: everything
+//    buffered goes. Smaller steps back of detection arrays are a detector publishing out of order
+//    (several worker threads, variable inference time): the array is simply buffered;
 //  - while the caller cannot process (no usable camera yet), matched keyframes are held, not lost,
 //    until they expire;
 //  - pose corrections that arrive for a keyframe still buffered are kept and handed out with it.
@@ -29,6 +32,7 @@ namespace dqo::objects {
 struct StampMatcherParams {
   double stamp_tolerance = 0.002;  // seconds between a keyframe's and its detections' stamps
   double buffer_seconds = 5.0;     // how long either side waits for the other (message time)
+  double max_reorder_seconds = 1.0;  // detection arrays this much out of order are not a loop
 };
 
 // A stream's time went back: both buffers were cleared.
@@ -69,16 +73,17 @@ class StampMatcher {
 
   explicit StampMatcher(const StampMatcherParams& params) : p_(params) {}
 
-  // Keyframes come in stamp order per stream; an older stamp resets (see above).
+  // Keyframes come in stamp order (one tracker); an older stamp resets (see above).
   std::optional<StampReset> add_keyframe(double stamp, KeyFrameId id, KeyFramePtr keyframe) {
-    std::optional<StampReset> reset = check_time(stamp, &last_kf_stamp_);
+    std::optional<StampReset> reset = check_time(stamp, &last_kf_stamp_, 0.0);
     keyframes_.push_back(Buffered{stamp, id, std::move(keyframe)});
     return reset;
   }
 
-  // A second array with the same stamp replaces the first.
+  // A second array with the same stamp replaces the first. Arrays up to max_reorder_seconds out of
+  // order are buffered like any other (one that no keyframe can claim is dropped at the next match).
   std::optional<StampReset> add_detections(double stamp, DetectionsPtr detections) {
-    std::optional<StampReset> reset = check_time(stamp, &last_det_stamp_);
+    std::optional<StampReset> reset = check_time(stamp, &last_det_stamp_, p_.max_reorder_seconds);
     detections_[stamp] = std::move(detections);
     return reset;
   }
@@ -158,9 +163,10 @@ class StampMatcher {
     KeyFramePtr keyframe;
   };
 
-  std::optional<StampReset> check_time(double stamp, std::optional<double>* last) {
+  // `*last` is the newest stamp of the stream; a step back of more than `slack` is a loop.
+  std::optional<StampReset> check_time(double stamp, std::optional<double>* last, double slack) {
     std::optional<StampReset> reset;
-    if (*last && stamp < **last) {
+    if (*last && stamp < **last - slack) {
       reset = StampReset{**last - stamp, keyframes_.size(), detections_.size()};
       keyframes_.clear();
       detections_.clear();
@@ -169,7 +175,7 @@ class StampMatcher {
       last_det_stamp_.reset();
       newest_ = 0.0;
     }
-    *last = stamp;
+    if (!*last || stamp > **last) *last = stamp;
     if (stamp > newest_) newest_ = stamp;
     return reset;
   }
