@@ -366,6 +366,38 @@ QuadricInitResult initialise_from_boxes(const std::vector<BoxObservation>& obser
   return r;
 }
 
+namespace {
+
+// Valid depth samples in the pixel centres of [u0, u1) x [v0, v1), at most about `budget` of them
+// (a regular stride in both directions).
+std::vector<double> depth_samples(const DepthView& depth, double u0d, double v0d, double u1d,
+                                  double v1d, const DepthInitParams& params, int budget) {
+  const int u0 = std::max(0, static_cast<int>(std::ceil(u0d)));
+  const int v0 = std::max(0, static_cast<int>(std::ceil(v0d)));
+  const int u1 = std::min(depth.width, static_cast<int>(std::ceil(u1d)));
+  const int v1 = std::min(depth.height, static_cast<int>(std::ceil(v1d)));
+  std::vector<double> out;
+  if (u1 <= u0 || v1 <= v0) return out;
+  const double area = static_cast<double>(u1 - u0) * (v1 - v0);
+  const int stride = std::max(1, static_cast<int>(std::floor(std::sqrt(area / std::max(1, budget)))));
+  for (int v = v0; v < v1; v += stride) {
+    for (int u = u0; u < u1; u += stride) {
+      const double d = depth.at(u, v);
+      if (std::isfinite(d) && d >= params.min_depth && d <= params.max_depth) out.push_back(d);
+    }
+  }
+  return out;
+}
+
+// The order statistic at floor(q (n − 1)); reorders v. v must not be empty.
+double order_quantile(std::vector<double>& v, double q) {
+  const size_t k = static_cast<size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
+  return v[k];
+}
+
+}  // namespace
+
 QuadricInitResult initialise_from_depth(const Box2d& box, const PinholeCamera& camera,
                                         const SE3& T_wc, const DepthView& depth,
                                         const DepthInitParams& params) {
@@ -373,44 +405,47 @@ QuadricInitResult initialise_from_depth(const Box2d& box, const PinholeCamera& c
       !(camera.fx > 0.0) || !(camera.fy > 0.0)) {
     return failure(InitStatus::kInvalidInput, "invalid box, camera or depth image");
   }
-  // Pixel centres (integer coordinates) inside the half-open box [min, max).
-  const int u0 = std::max(0, static_cast<int>(std::ceil(box.x_min)));
-  const int v0 = std::max(0, static_cast<int>(std::ceil(box.y_min)));
-  const int u1 = std::min(depth.width, static_cast<int>(std::ceil(box.x_max)));
-  const int v1 = std::min(depth.height, static_cast<int>(std::ceil(box.y_max)));
-  std::vector<double> samples;
-  samples.reserve(static_cast<size_t>(std::max(0, u1 - u0)) * std::max(0, v1 - v0));
-  for (int v = v0; v < v1; ++v) {
-    for (int u = u0; u < u1; ++u) {
-      const double d = depth.at(u, v);
-      if (std::isfinite(d) && d >= params.min_depth && d <= params.max_depth) samples.push_back(d);
+  // Fewer samples than this give no quantile worth the name.
+  constexpr size_t kMinSamples = 4;
+  const double w = box.width(), h = box.height();
+  const double margin = 0.5 * (1.0 - std::clamp(params.front_window, 0.0, 1.0));
+  std::vector<double> window =
+      depth_samples(depth, box.x_min + margin * w, box.y_min + margin * h, box.x_max - margin * w,
+                    box.y_max - margin * h, params, params.window_samples);
+  if (window.size() < kMinSamples) {
+    return failure(InitStatus::kNoValidDepth, "no valid depth in the box's centre");
+  }
+  const double front = order_quantile(window, params.low_quantile);
+  // Lateral semi-axes at the front surface bound how deep the object can reach.
+  const double lateral_max = 0.5 * std::max(w / camera.fx, h / camera.fy) * front;
+  const double lateral_min = 0.5 * std::min(w / camera.fx, h / camera.fy) * front;
+  const std::vector<double> all =
+      depth_samples(depth, box.x_min, box.y_min, box.x_max, box.y_max, params, params.box_samples);
+  std::vector<double> object;
+  for (const double d : all) {
+    if (d >= front - params.front_tolerance && d <= front + params.max_depth_reach * lateral_max) {
+      object.push_back(d);
     }
   }
-  if (samples.empty()) {
-    return failure(InitStatus::kNoValidDepth, "no valid depth inside the box");
+  double spread = 0.0;
+  if (object.size() >= kMinSamples) {
+    std::vector<double> copy = object;
+    spread = order_quantile(copy, params.high_quantile) - order_quantile(object, params.low_quantile);
   }
-  std::sort(samples.begin(), samples.end());
-  const auto quantile = [&samples](double q) {
-    // Linear interpolation between order statistics, so a ramp gives its exact quantile.
-    const double pos = std::clamp(q, 0.0, 1.0) * static_cast<double>(samples.size() - 1);
-    const size_t i = static_cast<size_t>(std::floor(pos));
-    const size_t j = std::min(i + 1, samples.size() - 1);
-    return samples[i] + (pos - static_cast<double>(i)) * (samples[j] - samples[i]);
-  };
-  const double d_mid = quantile(0.5);
-  const double spread = quantile(params.high_quantile) - quantile(params.low_quantile);
-
-  const Eigen::Vector2d c = box.centre();
-  const Eigen::Vector3d centre_c = camera.back_project(c.x(), c.y(), d_mid);
-  Eigen::Vector3d axes(0.5 * box.width() * d_mid / camera.fx,
-                       0.5 * box.height() * d_mid / camera.fy, 0.5 * spread);
+  const double lo = std::max(params.min_semi_axis, params.min_depth_axis_ratio * lateral_min);
+  const double hi = std::max(lo, std::max(params.min_semi_axis, params.max_depth_axis_ratio * lateral_max));
+  const double c = std::clamp(spread, lo, hi);
+  const double z_c = front + c;
+  const Eigen::Vector2d uv = box.centre();
+  const Eigen::Vector3d centre_c = camera.back_project(uv.x(), uv.y(), z_c);
+  Eigen::Vector3d axes(0.5 * w * z_c / camera.fx, 0.5 * h * z_c / camera.fy, c);
   axes = axes.cwiseMax(params.min_semi_axis);
 
   QuadricInitResult r;
   r.ok = true;
   r.status = InitStatus::kOk;
   r.quadric = DualQuadric::from_params(T_wc * centre_c, T_wc.rotation(), axes);
-  r.num_depth_samples = static_cast<int>(samples.size());
+  r.num_depth_samples = static_cast<int>(object.size());
   return r;
 }
 

@@ -13,7 +13,7 @@ std::optional<DualQuadric> depth_quadric(const Box2d& box, const AssociationFram
                                          const LifecycleParams& lifecycle) {
   if (!lifecycle.single_view_fallback || frame.depth.data == nullptr) return std::nullopt;
   const QuadricInitResult r =
-      initialise_from_depth_robust(box, *frame.camera, frame.T_wc, frame.depth, lifecycle.depth_init);
+      initialise_from_depth(box, *frame.camera, frame.T_wc, frame.depth, lifecycle.depth_init);
   if (!r.ok) return std::nullopt;
   return r.quadric;
 }

@@ -1,23 +1,10 @@
 #pragma once
-// Single-view ellipsoid from a detection box and the depth image, robust to the background that a
-// detection box always holds. geometry's initialise_from_depth (the released code's rule: centre
-// at the median depth in the box, depth axis from the depth spread) lands on the wall behind thin
-// objects (a bottle covers a third of its box) and gives metre-long depth axes; measured on
-// tabletop, most first views of the bottle and the laptop failed to associate afterwards.
-//
-// Here: the front surface is a low quantile of the depth in the central part of the box (an object
-// covers its box's centre); the object's samples are those within an object's size behind it; the
-// depth semi-axis is their spread, bounded by the lateral semi-axes (objects are about as deep as
-// they are wide); the centre lies one depth semi-axis behind the front surface; the lateral
-// semi-axes are the box's half width and height at the centre's depth. Rotation: the camera's axes.
+// The objects' use of the single-view depth ellipsoids (geometry's initialise_from_depth, robust to
+// the background in a detection box): the depth check of box-plane quadrics.
 #include <vector>
 #include "dqo_map/geometry/quadric_init.h"
 
 namespace dqo::objects {
-
-QuadricInitResult initialise_from_depth_robust(const Box2d& box, const PinholeCamera& camera,
-                                               const SE3& T_wc, const DepthView& depth,
-                                               const DepthInitParams& params);
 
 // Depth evidence of one observation: the single-view depth ellipsoid of its detection (world)
 // and the pose of the camera that saw it.

@@ -234,8 +234,8 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
   if (kf.depth.data != nullptr &&
       (params.lifecycle.single_view_fallback || params.lifecycle.max_depth_disagreement > 0.0)) {
     for (size_t d = 0; d < dets.size(); ++d) {
-      const QuadricInitResult r = initialise_from_depth_robust(dets[d].box, kf.camera, kf.T_wc, kf.depth,
-                                                               params.lifecycle.depth_init);
+      const QuadricInitResult r = initialise_from_depth(dets[d].box, kf.camera, kf.T_wc, kf.depth,
+                                                        params.lifecycle.depth_init);
       if (!r.ok || !r.quadric.is_valid()) continue;
       det_depth[d] = r.quadric;
       record.depth_quadrics.emplace_back(dets[d].box, r.quadric);

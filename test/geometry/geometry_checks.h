@@ -40,7 +40,7 @@ constexpr double kNoisyCentreTolerance = 0.02;  // of the largest full extent
 constexpr double kBoxTolerance = 1e-12;
 constexpr double kPlaneTolerance = 1e-9;
 constexpr double kDistanceTolerance = 1e-9;
-constexpr double kDepthInitToleranceM = 5e-3;  // half a column of a slanted plane's depth
+constexpr double kDepthInitToleranceM = 1e-9;  // the scenes' depths are exact in float
 
 // ------------------------------------------------------------------ random scene
 inline double uniform(std::mt19937_64& rng, double lo, double hi) {
@@ -367,52 +367,86 @@ inline double init_degenerate_failures(uint64_t seed) {
   return 0.0;
 }
 
-// A synthetic depth image of a plane patch behind the box (fronto-parallel, or turned about the
-// camera's y axis by up to 40°) with a few holes; centre and semi-axes against an independent
-// computation from the plane's analytic depth at the quantile columns.
+// A synthetic depth image of an object in front of a wall, and the ellipsoid expected from the
+// scene itself (not from the image's samples). By seed: a thin object (about a third of the box
+// wide, a bottle: the reason for the robust rule), a wide one (most of the box), or only a
+// fronto-parallel wall filling the box. The object's surface has two fronto-parallel steps (near
+// and far, each 40-60 % of its columns); the wall behind it is slanted about the camera's y axis
+// and lies beyond the object's reach everywhere; the image has a few holes. What the rule promises
+// (quadric_init.h): the front surface is the nearest thing covering the box's centre, the depth
+// semi-axis the object's own depth extent within its bounds, the centre one depth semi-axis
+// behind the front on the box-centre ray. Every depth is exact in float, so the model is too.
 inline double depth_init_error(uint64_t seed) {
   std::mt19937_64 rng(seed);
   const PinholeCamera cam = test_camera();
-  const double z0 = uniform(rng, 0.8, 4.0);
-  const double slant = (seed % 3 == 0) ? 0.0 : uniform(rng, -0.7, 0.7);
-  const Box2d box{std::round(uniform(rng, 20, 300)), std::round(uniform(rng, 20, 220)),
-                  std::round(uniform(rng, 340, 620)), std::round(uniform(rng, 260, 460))};
-  // Plane through (0, 0, z0) with normal (sin s, 0, −cos s) in the camera frame: depth at pixel u
-  // is z0 / (1 − tan(s) x̂) with x̂ = (u − cx)/fx; independent of v.
-  const auto plane_depth = [&](double u) {
-    return z0 / (1.0 - std::tan(slant) * (u - cam.cx) / cam.fx);
-  };
+  const DepthInitParams params;
+  const int kind = static_cast<int>(seed % 3);  // 0 thin object, 1 wide object, 2 wall only
+  const double bw = std::round(uniform(rng, 120, 560)), bh = std::round(uniform(rng, 120, 420));
+  const double bx = std::round(uniform(rng, 10, cam.width - 10 - bw));
+  const double by = std::round(uniform(rng, 10, cam.height - 10 - bh));
+  const Box2d box{bx, by, bx + bw, by + bh};
+  // Depths as the image stores them (float), so that the model sees what the function sees.
+  const auto as_float = [](double d) { return static_cast<double>(static_cast<float>(d)); };
+  const double z_near = as_float(uniform(rng, 0.8, 3.0));
+  const double lateral_max = 0.5 * std::max(bw / cam.fx, bh / cam.fy) * z_near;
+  const double lateral_min = 0.5 * std::min(bw / cam.fx, bh / cam.fy) * z_near;
+  const double z_far = kind == 2 ? z_near : as_float(z_near + uniform(rng, 0.01, 1.5) * lateral_max);
+  // The object's columns [c0, c1) split at c_step, and rows [r0, r1), in pixels.
+  const double a0 = kind == 0 ? uniform(rng, 0.30, 0.36) : uniform(rng, 0.10, 0.20);
+  const double a1 = kind == 0 ? a0 + uniform(rng, 0.30, 0.36) : uniform(rng, 0.80, 0.90);
+  const double split = uniform(rng, 0.4, 0.6);
+  const bool near_left = uniform(rng, 0, 1) < 0.5;
+  const double c0 = bx + std::round(a0 * bw), c1 = bx + std::round(a1 * bw);
+  const double c_step = std::round(c0 + split * (c1 - c0));
+  const double r0 = by + std::round(uniform(rng, 0.0, 0.2) * bh);
+  const double r1 = by + std::round(uniform(rng, 0.8, 1.0) * bh);
+  // Wall: depth zw0 / (1 − tan(s) x̂), x̂ = (u − cx)/fx in [−0.61, 0.61] over the image, so at
+  // least zw0 / (1 + 0.62 |tan s|): beyond the object's reach behind its front surface.
+  const double tan_s = std::tan(uniform(rng, -0.5, 0.5));
+  const double zw0 = (z_near + params.max_depth_reach * lateral_max + uniform(rng, 0.1, 1.5)) *
+                     (1.0 + 0.62 * std::abs(tan_s));
   std::vector<float> image(static_cast<size_t>(cam.width) * cam.height, 0.0f);
   for (int v = 0; v < cam.height; ++v) {
     for (int u = 0; u < cam.width; ++u) {
-      const bool inside = u >= box.x_min && u < box.x_max && v >= box.y_min && v < box.y_max;
-      const bool hole = ((u * 7 + v * 13) % 97) == 0;
-      if (inside) {
-        image[static_cast<size_t>(v) * cam.width + u] =
-            hole ? std::nanf("") : static_cast<float>(plane_depth(u));
+      double d = zw0 / (1.0 - tan_s * (u - cam.cx) / cam.fx);
+      if (kind == 2) d = z_near;
+      if (kind != 2 && u >= c0 && u < c1 && v >= r0 && v < r1) {
+        d = ((u < c_step) == near_left) ? z_near : z_far;
       }
+      const bool hole = ((u * 7 + v * 13) % 97) == 0;
+      image[static_cast<size_t>(v) * cam.width + u] = hole ? std::nanf("") : static_cast<float>(d);
     }
   }
   const SE3 T_wc = random_pose(rng);
-  const QuadricInitResult r = initialise_from_depth(box, cam, T_wc, DepthView{image.data(), cam.width, cam.height});
+  const QuadricInitResult r =
+      initialise_from_depth(box, cam, T_wc, DepthView{image.data(), cam.width, cam.height}, params);
   if (!r.ok) return kFail;
-  // Depth is monotonic in u and every column holds about as many samples, so the q-quantile of
-  // the samples is the depth at the column a fraction q across the box (to half a column).
-  const double cols = box.x_max - box.x_min;
-  const auto depth_quantile = [&](double qq) { return plane_depth(box.x_min + qq * cols - 0.5); };
-  const double d_mid = depth_quantile(0.5);
-  const Eigen::Vector2d c = box.centre();
-  const Eigen::Vector3d centre_c((c.x() - cam.cx) / cam.fx * d_mid, (c.y() - cam.cy) / cam.fy * d_mid, d_mid);
-  const Eigen::Vector3d axes(std::max(0.02, 0.5 * box.width() * d_mid / cam.fx),
-                             std::max(0.02, 0.5 * box.height() * d_mid / cam.fy),
-                             std::max(0.02, 0.5 * std::abs(depth_quantile(0.9) - depth_quantile(0.1))));
+  const double c = std::clamp(z_far - z_near,
+                              std::max(params.min_semi_axis, params.min_depth_axis_ratio * lateral_min),
+                              std::max(params.min_semi_axis, params.max_depth_axis_ratio * lateral_max));
+  const double z_c = z_near + c;
+  const Eigen::Vector2d m = box.centre();
+  const Eigen::Vector3d centre_c((m.x() - cam.cx) / cam.fx * z_c, (m.y() - cam.cy) / cam.fy * z_c, z_c);
+  const Eigen::Vector3d axes(std::max(params.min_semi_axis, 0.5 * bw * z_c / cam.fx),
+                             std::max(params.min_semi_axis, 0.5 * bh * z_c / cam.fy),
+                             std::max(params.min_semi_axis, c));
   double err = (r.quadric.centre() - T_wc * centre_c).norm();
   err = std::max(err, (r.quadric.semi_axes() - axes).cwiseAbs().maxCoeff());
   err = std::max(err, (r.quadric.rotation() - T_wc.rotation()).cwiseAbs().maxCoeff());
-  // No valid depth must fail, not invent an object.
+  // No valid depth must fail, not invent an object; nor may depth only at the box's margins.
   std::vector<float> empty(image.size(), 0.0f);
-  if (initialise_from_depth(box, cam, T_wc, DepthView{empty.data(), cam.width, cam.height}).status !=
-      InitStatus::kNoValidDepth) {
+  if (initialise_from_depth(box, cam, T_wc, DepthView{empty.data(), cam.width, cam.height}, params)
+          .status != InitStatus::kNoValidDepth) {
+    return kFail;
+  }
+  for (int v = 0; v < cam.height; ++v) {
+    for (int u = 0; u < cam.width; ++u) {
+      const bool central = u >= bx + 0.2 * bw && u < bx + 0.8 * bw && v >= by + 0.2 * bh && v < by + 0.8 * bh;
+      if (central) image[static_cast<size_t>(v) * cam.width + u] = std::nanf("");
+    }
+  }
+  if (initialise_from_depth(box, cam, T_wc, DepthView{image.data(), cam.width, cam.height}, params)
+          .status != InitStatus::kNoValidDepth) {
     return kFail;
   }
   return err;

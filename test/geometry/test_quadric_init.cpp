@@ -83,7 +83,9 @@ TEST(QuadricInit, SingleViewFromDepth) {
 }
 
 TEST(QuadricInit, SingleViewFrontoParallelByHand) {
-  // A plane at 2 m filling the box [200, 300) x [100, 180): 100 x 80 px → 0.381 x 0.305 m.
+  // A plane at 2 m filling the box [200, 300) x [100, 180): 100 x 80 px, lateral semi-axes at the
+  // front 0.190 and 0.152 m. No spread, so the depth semi-axis is its floor, half the smaller
+  // lateral one (0.0762 m), and the centre lies that far behind the plane.
   const PinholeCamera cam = checks::test_camera();
   std::vector<float> depth(640 * 480, std::nanf(""));
   for (int v = 100; v < 180; ++v) {
@@ -92,13 +94,16 @@ TEST(QuadricInit, SingleViewFrontoParallelByHand) {
   const Box2d box{200, 100, 300, 180};
   const QuadricInitResult r = initialise_from_depth(box, cam, SE3::identity(), DepthView{depth.data(), 640, 480});
   ASSERT_TRUE(r.ok) << r.error;
-  EXPECT_EQ(r.num_depth_samples, 100 * 80);
-  EXPECT_NEAR(r.quadric.centre().x(), (250.0 - 319.5) / 525.0 * 2.0, 1e-9);
-  EXPECT_NEAR(r.quadric.centre().y(), (140.0 - 239.5) / 525.0 * 2.0, 1e-9);
-  EXPECT_NEAR(r.quadric.centre().z(), 2.0, 1e-9);
-  EXPECT_NEAR(r.quadric.semi_axes().x(), 50.0 * 2.0 / 525.0, 1e-9);
-  EXPECT_NEAR(r.quadric.semi_axes().y(), 40.0 * 2.0 / 525.0, 1e-9);
-  EXPECT_NEAR(r.quadric.semi_axes().z(), DepthInitParams().min_semi_axis, 1e-12);
+  // 8000 pixels over a budget of 1500: every second column of every second row.
+  EXPECT_EQ(r.num_depth_samples, 50 * 40);
+  const double c = 0.5 * (0.5 * 80.0 / 525.0 * 2.0);
+  const double z = 2.0 + c;
+  EXPECT_NEAR(r.quadric.centre().x(), (250.0 - 319.5) / 525.0 * z, 1e-9);
+  EXPECT_NEAR(r.quadric.centre().y(), (140.0 - 239.5) / 525.0 * z, 1e-9);
+  EXPECT_NEAR(r.quadric.centre().z(), z, 1e-9);
+  EXPECT_NEAR(r.quadric.semi_axes().x(), 50.0 * z / 525.0, 1e-9);
+  EXPECT_NEAR(r.quadric.semi_axes().y(), 40.0 * z / 525.0, 1e-9);
+  EXPECT_NEAR(r.quadric.semi_axes().z(), c, 1e-9);
   EXPECT_TRUE(r.quadric.is_valid());
 
   // A box over invalid depth only.
@@ -106,6 +111,42 @@ TEST(QuadricInit, SingleViewFrontoParallelByHand) {
       initialise_from_depth(Box2d{400, 300, 500, 400}, cam, SE3::identity(), DepthView{depth.data(), 640, 480});
   EXPECT_FALSE(none.ok);
   EXPECT_EQ(none.status, InitStatus::kNoValidDepth);
+}
+
+TEST(QuadricInit, SingleViewThinObjectInFrontOfWallByHand) {
+  // A bottle at 1.5 m, columns [234, 267) of the box [200, 300) x [100, 260), a wall at 3 m behind
+  // the rest: two thirds of the box are wall, so the median depth in the box (the released code's
+  // rule) is the wall's. The front is the bottle (it covers most of the box's centre); the wall is
+  // beyond its reach (1.5 m + 2 × 0.229 m); the bottle's front is flat, so the depth semi-axis is
+  // half the smaller lateral one: 0.5 × 0.5 × 100 / 525 × 1.5 m.
+  const PinholeCamera cam = checks::test_camera();
+  std::vector<float> depth(640 * 480, 3.0f);
+  for (int v = 100; v < 260; ++v) {
+    for (int u = 234; u < 267; ++u) depth[v * 640 + u] = 1.5f;
+  }
+  const Box2d box{200, 100, 300, 260};
+  const QuadricInitResult r = initialise_from_depth(box, cam, SE3::identity(), DepthView{depth.data(), 640, 480});
+  ASSERT_TRUE(r.ok) << r.error;
+  const double c = 0.5 * (0.5 * 100.0 / 525.0 * 1.5);
+  const double z = 1.5 + c;
+  EXPECT_NEAR(r.quadric.centre().x(), (250.0 - 319.5) / 525.0 * z, 1e-9);
+  EXPECT_NEAR(r.quadric.centre().y(), (180.0 - 239.5) / 525.0 * z, 1e-9);
+  EXPECT_NEAR(r.quadric.centre().z(), z, 1e-9);
+  EXPECT_NEAR(r.quadric.semi_axes().x(), 50.0 * z / 525.0, 1e-9);
+  EXPECT_NEAR(r.quadric.semi_axes().y(), 80.0 * z / 525.0, 1e-9);
+  EXPECT_NEAR(r.quadric.semi_axes().z(), c, 1e-9);
+  // The ellipsoid ends in front of the wall, not on it.
+  EXPECT_LT(r.quadric.centre().z() + r.quadric.semi_axes().z(), 2.0);
+
+  // A bottle with depth (a step 10 cm deeper over its right half): the depth semi-axis is the step.
+  for (int v = 100; v < 260; ++v) {
+    for (int u = 250; u < 267; ++u) depth[v * 640 + u] = 1.6f;
+  }
+  const QuadricInitResult deep = initialise_from_depth(box, cam, SE3::identity(), DepthView{depth.data(), 640, 480});
+  ASSERT_TRUE(deep.ok) << deep.error;
+  const double step = static_cast<double>(1.6f) - static_cast<double>(1.5f);
+  EXPECT_NEAR(deep.quadric.semi_axes().z(), step, 1e-9);
+  EXPECT_NEAR(deep.quadric.centre().z(), 1.5 + step, 1e-9);
 }
 
 }  // namespace
