@@ -1,6 +1,8 @@
 #include "dqo_map/objects/object_params.h"
 #include "dqo_map/objects/object_types.h"
 
+#include <algorithm>
+
 namespace dqo::objects {
 
 const char* to_string(DetectionVerdict verdict) {
@@ -58,6 +60,22 @@ bool parse_fine_quadric(const std::string& text, FineQuadric* source) {
   }
   if (source) *source = s;
   return true;
+}
+
+InstanceImage renumber_instance(const InstanceImage& input, const std::vector<int>& filtered_source) {
+  // lookup[k + 1] = j + 1 for the filtered detection j whose source is input detection k.
+  int max_source = -1;
+  for (const int s : filtered_source) max_source = std::max(max_source, s);
+  std::vector<uint16_t> lookup(static_cast<size_t>(std::max(0, max_source + 2)), 0);
+  for (size_t j = 0; j < filtered_source.size(); ++j) {
+    if (filtered_source[j] >= 0 && j + 1 <= 0xffff) lookup[filtered_source[j] + 1] = static_cast<uint16_t>(j + 1);
+  }
+  InstanceImage out(input.width, input.height, 1, 0);
+  for (size_t i = 0; i < input.data.size() && i < out.data.size(); ++i) {
+    const uint16_t v = input.data[i];
+    out.data[i] = v < lookup.size() ? lookup[v] : 0;
+  }
+  return out;
 }
 
 }  // namespace dqo::objects

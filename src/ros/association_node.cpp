@@ -280,7 +280,7 @@ void AssociationNode::process(const dqo_map::KeyFrame& kf, const dqo_map::Detect
   header.frame_id = p_.map_frame;
   publish(header, result);
   InstanceImage renumbered;
-  if (!instance.empty()) renumbered = renumber_instance(instance, result.filtered_source);
+  if (!instance.empty()) renumbered = objects::renumber_instance(instance, result.filtered_source);
   std_msgs::Header image_header = header;
   image_header.frame_id = kf.camera_info.header.frame_id;
   kf_objects_pub_.publish(to_keyframe_objects_msg(result, image_header, renumbered));

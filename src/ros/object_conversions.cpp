@@ -96,59 +96,6 @@ sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Hea
   return msg;
 }
 
-InstanceImage renumber_instance(const InstanceImage& input, const std::vector<int>& filtered_source) {
-  // lookup[k + 1] = j + 1 for the filtered detection j whose source is input detection k.
-  int max_source = -1;
-  for (const int s : filtered_source) max_source = std::max(max_source, s);
-  std::vector<uint16_t> lookup(static_cast<size_t>(std::max(0, max_source + 2)), 0);
-  for (size_t j = 0; j < filtered_source.size(); ++j) {
-    if (filtered_source[j] >= 0 && j + 1 <= 0xffff) lookup[filtered_source[j] + 1] = static_cast<uint16_t>(j + 1);
-  }
-  InstanceImage out(input.width, input.height, 1, 0);
-  for (size_t i = 0; i < input.data.size() && i < out.data.size(); ++i) {
-    const uint16_t v = input.data[i];
-    out.data[i] = v < lookup.size() ? lookup[v] : 0;
-  }
-  return out;
-}
-
-Box2d rectify_box(const Box2d& raw, const tracking::Undistorter& undistorter) {
-  if (!std::isfinite(raw.x_min) || !std::isfinite(raw.y_min) || !std::isfinite(raw.x_max) ||
-      !std::isfinite(raw.y_max) || undistorter.is_identity()) {
-    return raw;
-  }
-  constexpr int kSamples = 8;  // per edge: enough for the bend of a wide-angle lens over one box
-  Box2d out{INFINITY, INFINITY, -INFINITY, -INFINITY};
-  auto add = [&](double u, double v) {
-    const Eigen::Vector2d p = undistorter.rectify_point({u, v});
-    out.x_min = std::min(out.x_min, p.x()), out.x_max = std::max(out.x_max, p.x());
-    out.y_min = std::min(out.y_min, p.y()), out.y_max = std::max(out.y_max, p.y());
-  };
-  for (int i = 0; i <= kSamples; ++i) {
-    const double s = static_cast<double>(i) / kSamples;
-    const double u = raw.x_min + s * (raw.x_max - raw.x_min);
-    const double v = raw.y_min + s * (raw.y_max - raw.y_min);
-    add(u, raw.y_min), add(u, raw.y_max), add(raw.x_min, v), add(raw.x_max, v);
-  }
-  return out;
-}
-
-bool rectify_instance(const InstanceImage& raw, const tracking::Undistorter& undistorter,
-                      InstanceImage* rectified, std::string* error) {
-  // The depth remap is nearest-neighbour with 0 outside: exactly what labels need. uint16 values
-  // are exact in float.
-  DepthImage as_float(raw.width, raw.height, 1);
-  for (size_t i = 0; i < raw.data.size() && i < as_float.data.size(); ++i) as_float.data[i] = raw.data[i];
-  DepthImage out;
-  if (raw.channels != 1 || !undistorter.rectify_depth(as_float, &out, error)) {
-    if (error && raw.channels != 1) *error = "instance image must have one channel";
-    return false;
-  }
-  *rectified = InstanceImage(out.width, out.height, 1, 0);
-  for (size_t i = 0; i < out.data.size(); ++i) rectified->data[i] = static_cast<uint16_t>(out.data[i]);
-  return true;
-}
-
 bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& detections,
                         const tracking::Undistorter* undistorter, objects::ObjectKeyFrame* out,
                         DepthImage* depth, InstanceImage* instance, std::vector<std::string>* warnings,
@@ -178,7 +125,7 @@ bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArr
   }
   out->detections = from_detection_array_msg(detections);
   if (undistorter) {
-    for (Detection2d& d : out->detections) d.box = rectify_box(d.box, *undistorter);
+    for (Detection2d& d : out->detections) d.box = undistorter->rectify_box(d.box);
   }
   *instance = InstanceImage();
   if (detections.instance.width == 0 || detections.instance.height == 0) return true;
@@ -193,7 +140,7 @@ bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArr
     warnings->push_back("instance image is " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
                         ", the camera " + std::to_string(camera.width) + "x" + std::to_string(camera.height) +
                         ": detections used without it");
-  } else if (undistorter && !rectify_instance(raw, *undistorter, instance, &why)) {
+  } else if (undistorter && !undistorter->rectify_labels(raw, instance, &why)) {
     warnings->push_back(why + ": detections used without their instance image");
   } else if (!undistorter) {
     *instance = std::move(raw);

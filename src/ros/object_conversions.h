@@ -36,20 +36,6 @@ std::vector<Detection2d> from_detection_array_msg(const dqo_map::DetectionArray&
 bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, std::string* error);
 sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header);
 
-// A DetectionArray's instance image (value k+1 = input detection k) renumbered for the filtered
-// detections (value j+1 = filtered detection j, whose input index is filtered_source[j]); pixels of
-// detections that did not pass become 0, as do values beyond the input's detection count.
-InstanceImage renumber_instance(const InstanceImage& input, const std::vector<int>& filtered_source);
-
-// A raw detection box in the rectified image: the box around its boundary mapped through the
-// undistortion (sampled along each edge, since straight edges bend). Boxes that are not finite
-// pass through unchanged for the core's filter to reject.
-Box2d rectify_box(const Box2d& raw, const tracking::Undistorter& undistorter);
-// A raw instance image (detection index + 1) in the rectified image, by nearest neighbour (labels
-// must never blend); false and *error when its size is not the camera's.
-bool rectify_instance(const InstanceImage& raw, const tracking::Undistorter& undistorter,
-                      InstanceImage* rectified, std::string* error);
-
 // The mapper's input from a KeyFrame and its DetectionArray: the rectified pinhole camera from the
 // keyframe's camera_info, T_wc from its pose, the depth as metres in *depth (the returned view
 // points into it), the boxes through `undistorter` (nullptr: they are rectified already), and the

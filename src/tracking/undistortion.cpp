@@ -1,6 +1,7 @@
 #include "dqo_map/tracking/undistortion.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include <opencv2/calib3d.hpp>
@@ -172,6 +173,43 @@ Eigen::Vector2d Undistorter::distort_point(const Eigen::Vector2d& uv_rectified) 
   std::vector<cv::Point2d> out;
   cv::projectPoints(in, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), m.K, m.D, out);
   return {out[0].x, out[0].y};
+}
+
+Box2d Undistorter::rectify_box(const Box2d& raw) const {
+  if (!std::isfinite(raw.x_min) || !std::isfinite(raw.y_min) || !std::isfinite(raw.x_max) ||
+      !std::isfinite(raw.y_max) || is_identity()) {
+    return raw;
+  }
+  constexpr int kSamples = 8;  // per edge: enough for the bend of a wide-angle lens over one box
+  Box2d out{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  auto add = [&](double u, double v) {
+    const Eigen::Vector2d p = rectify_point({u, v});
+    out.x_min = std::min(out.x_min, p.x()), out.x_max = std::max(out.x_max, p.x());
+    out.y_min = std::min(out.y_min, p.y()), out.y_max = std::max(out.y_max, p.y());
+  };
+  for (int i = 0; i <= kSamples; ++i) {
+    const double s = static_cast<double>(i) / kSamples;
+    const double u = raw.x_min + s * (raw.x_max - raw.x_min);
+    const double v = raw.y_min + s * (raw.y_max - raw.y_min);
+    add(u, raw.y_min), add(u, raw.y_max), add(raw.x_min, v), add(raw.x_max, v);
+  }
+  return out;
+}
+
+bool Undistorter::rectify_labels(const InstanceImage& raw, InstanceImage* rectified,
+                                 std::string* error) const {
+  // The depth remap is nearest-neighbour with 0 outside: exactly what labels need. uint16 values
+  // are exact in float.
+  DepthImage as_float(raw.width, raw.height, 1);
+  for (size_t i = 0; i < raw.data.size() && i < as_float.data.size(); ++i) as_float.data[i] = raw.data[i];
+  DepthImage out;
+  if (raw.channels != 1 || !rectify_depth(as_float, &out, error)) {
+    if (error && raw.channels != 1) *error = "instance image must have one channel";
+    return false;
+  }
+  *rectified = InstanceImage(out.width, out.height, 1, 0);
+  for (size_t i = 0; i < out.data.size(); ++i) rectified->data[i] = static_cast<uint16_t>(out.data[i]);
+  return true;
 }
 
 }  // namespace dqo::tracking

@@ -104,7 +104,7 @@ TEST(ObjectConversions, InstanceRenumbering) {
   std::uniform_int_distribution<int> v(0, 9);  // 0 = none, 1..9 = input detections 0..8; 9 also a stray value
   for (auto& x : in.data) x = static_cast<uint16_t>(v(rng));
   const std::vector<int> source = {1, 4, 5, 8};  // filtered detection j came from input source[j]
-  const InstanceImage out = renumber_instance(in, source);
+  const InstanceImage out = objects::renumber_instance(in, source);
   ASSERT_EQ(out.width, in.width);
   ASSERT_EQ(out.height, in.height);
   for (size_t i = 0; i < in.data.size(); ++i) {
@@ -237,7 +237,7 @@ TEST(ObjectConversions, RectifiedBoxesEncloseTheBoundary) {
   ASSERT_TRUE(und) << error;
   ASSERT_FALSE(und->is_identity());
   const Box2d raw{10.0, 8.0, 70.0, 50.0};
-  const Box2d r = rectify_box(raw, *und);
+  const Box2d r = und->rectify_box(raw);
   // Independently: the bounding box of many boundary points, each rectified.
   Box2d dense{1e9, 1e9, -1e9, -1e9};
   for (int i = 0; i <= 400; ++i) {
@@ -257,8 +257,8 @@ TEST(ObjectConversions, RectifiedBoxesEncloseTheBoundary) {
   EXPECT_GT(std::abs(r.x_min - raw.x_min) + std::abs(r.y_min - raw.y_min), 0.5) << "the distortion should move the box";
 
   const Box2d nan_box{std::numeric_limits<double>::quiet_NaN(), 1.0, 5.0, 6.0};
-  EXPECT_TRUE(std::isnan(rectify_box(nan_box, *und).x_min));
-  EXPECT_EQ(rectify_box(nan_box, *und).x_max, 5.0);
+  EXPECT_TRUE(std::isnan(und->rectify_box(nan_box).x_min));
+  EXPECT_EQ(und->rectify_box(nan_box).x_max, 5.0);
 }
 
 TEST(ObjectConversions, RectifiedInstanceImageByNearestNeighbour) {
@@ -270,7 +270,7 @@ TEST(ObjectConversions, RectifiedInstanceImageByNearestNeighbour) {
     for (int x = 0; x < 160; ++x) raw.at(x, y) = static_cast<uint16_t>(1 + (x / 20) + 8 * (y / 20));
   }
   InstanceImage rect;
-  ASSERT_TRUE(rectify_instance(raw, *und, &rect, &error)) << error;
+  ASSERT_TRUE(und->rectify_labels(raw, &rect, &error)) << error;
   ASSERT_EQ(rect.width, 160);
   std::set<uint16_t> values(raw.data.begin(), raw.data.end());
   int agree = 0, total = 0;
@@ -288,7 +288,7 @@ TEST(ObjectConversions, RectifiedInstanceImageByNearestNeighbour) {
   // Nearest-neighbour rounding may differ exactly on cell borders; everywhere else it agrees.
   EXPECT_GT(agree, 0.97 * total);
   InstanceImage wrong(10, 10, 1, 0);
-  EXPECT_FALSE(rectify_instance(wrong, *und, &rect, &error));
+  EXPECT_FALSE(und->rectify_labels(wrong, &rect, &error));
 }
 
 TEST(ObjectConversions, KeyFrameToMapperInput) {
@@ -334,11 +334,11 @@ TEST(ObjectConversions, KeyFrameToMapperInput) {
   EXPECT_FLOAT_EQ(okf.depth.at(3, 4), 1.5f);
   EXPECT_EQ(okf.depth.at(7, 9), 0.0f);
   ASSERT_EQ(okf.detections.size(), 1u);
-  const Box2d expected_box = rectify_box(Box2d{10, 8, 70, 50}, *und);
+  const Box2d expected_box = und->rectify_box(Box2d{10, 8, 70, 50});
   EXPECT_DOUBLE_EQ(okf.detections[0].box.x_min, expected_box.x_min);
   EXPECT_DOUBLE_EQ(okf.detections[0].box.y_max, expected_box.y_max);
   InstanceImage expected_instance;
-  ASSERT_TRUE(rectify_instance(inst, *und, &expected_instance, &error));
+  ASSERT_TRUE(und->rectify_labels(inst, &expected_instance, &error));
   EXPECT_EQ(instance.data, expected_instance.data);
 
   // Rectified detections: boxes and instance image as they came.

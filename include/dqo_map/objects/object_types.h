@@ -113,4 +113,10 @@ struct KeyFrameAssociation {
   std::vector<Refinement> refinements;
 };
 
+// A detector's instance image (value k+1 = input detection k) renumbered for the filtered
+// detections of a KeyFrameAssociation (value j+1 = filtered detection j, whose input index is
+// filtered_source[j]); pixels of detections that did not pass become 0, as do values beyond the
+// input's detection count. This is the instance image KeyFrameObjects carries.
+InstanceImage renumber_instance(const InstanceImage& input, const std::vector<int>& filtered_source);
+
 }  // namespace dqo::objects

@@ -19,6 +19,7 @@
 #include <Eigen/Core>
 
 #include "dqo_map/common/image.h"
+#include "dqo_map/geometry/box2d.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 
 namespace dqo::tracking {
@@ -63,6 +64,14 @@ class Undistorter {
   Eigen::Vector2d rectify_point(const Eigen::Vector2d& uv_raw) const;
   // Where a rectified pixel comes from in the raw image.
   Eigen::Vector2d distort_point(const Eigen::Vector2d& uv_rectified) const;
+
+  // A raw detection box in the rectified image: the box around its boundary mapped through the
+  // undistortion (sampled along each edge, since straight edges bend). Boxes that are not finite
+  // pass through unchanged for the object stage's filter to reject.
+  Box2d rectify_box(const Box2d& raw) const;
+  // A raw label image (e.g. detection index + 1) in the rectified image, by nearest neighbour
+  // (labels must never blend); false and *error when it is not one channel of the raw size.
+  bool rectify_labels(const InstanceImage& raw, InstanceImage* rectified, std::string* error) const;
 
  private:
   struct Maps;
