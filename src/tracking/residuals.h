@@ -132,6 +132,20 @@ struct BaDepthCost {
   double inv_sigma_;
 };
 
+// The 6-vector residual of a pose error E = exp(δ) (right perturbation): r = S [t_E; 2 vec(q_E)],
+// with q_E taken in the hemisphere w ≥ 0 so that 2 vec(q_E) ≈ the rotation vector for small
+// errors. Shared by the dense prior and the odometry factor.
+template <typename T>
+void whitened_pose_error(Eigen::Quaternion<T> q_e, const Eigen::Matrix<T, 3, 1>& t_e,
+                         const Eigen::Matrix<double, 6, 6>& sqrt_information, T* r) {
+  if (q_e.w() < T(0.0)) q_e.coeffs() = -q_e.coeffs();
+  Eigen::Matrix<T, 6, 1> delta;
+  delta.template head<3>() = t_e;
+  delta.template tail<3>() = T(2.0) * q_e.vec();
+  Eigen::Map<Eigen::Matrix<T, 6, 1>> residual(r);
+  residual = sqrt_information.cast<T>() * delta;
+}
+
 // The dense alignment as a 6-DoF Gaussian factor. Dense gives T̂_ref_cur (the current camera in
 // the previous frame's) with information Λ for the right perturbation T_ref_cur = T̂_ref_cur exp(δ),
 // δ = [ρ; φ] in the current camera's frame (dense_alignment.h). With the previous pose T_w_ref held
@@ -154,14 +168,9 @@ struct DensePriorCost {
     const Q q_wc = q_cw.conjugate();
     const V t_wc = -(q_wc * t_cw);
     const Q q_hat = q_hat_cw_.cast<T>();
-    Q q_e = q_hat * q_wc;
+    const Q q_e = q_hat * q_wc;
     const V t_e = q_hat * t_wc + t_hat_cw_.cast<T>();
-    if (q_e.w() < T(0.0)) q_e.coeffs() = -q_e.coeffs();
-    Eigen::Matrix<T, 6, 1> delta;
-    delta.template head<3>() = t_e;
-    delta.template tail<3>() = T(2.0) * q_e.vec();
-    Eigen::Map<Eigen::Matrix<T, 6, 1>> residual(r);
-    residual = sqrt_information_.cast<T>() * delta;
+    whitened_pose_error(q_e, t_e, sqrt_information_, r);
     return true;
   }
 
@@ -197,14 +206,9 @@ struct OdometryCost {
     const V t_wb = -(q_bw_inv * t_b);
     const Q q_ab = q_a * q_bw_inv;  // T_aw T_wb
     const V t_ab = q_a * t_wb + t_a;
-    Q q_e = q_ba_.cast<T>() * q_ab;
+    const Q q_e = q_ba_.cast<T>() * q_ab;
     const V t_e = q_ba_.cast<T>() * t_ab + t_ba_.cast<T>();
-    if (q_e.w() < T(0.0)) q_e.coeffs() = -q_e.coeffs();
-    Eigen::Matrix<T, 6, 1> delta;
-    delta.template head<3>() = t_e;
-    delta.template tail<3>() = T(2.0) * q_e.vec();
-    Eigen::Map<Eigen::Matrix<T, 6, 1>> residual(r);
-    residual = sqrt_information_.cast<T>() * delta;
+    whitened_pose_error(q_e, t_e, sqrt_information_, r);
     return true;
   }
 
