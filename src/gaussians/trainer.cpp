@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -45,6 +46,7 @@ void GaussianTrainer::sync_state() {
   adam_.resize_for(map_);
   invisible_count_.resize(map_.size(), 0);
   relabel_votes_.resize(map_.size(), 0);
+  usefulness_.resize(map_.size(), std::numeric_limits<float>::infinity());
 }
 
 KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
@@ -145,7 +147,8 @@ const GaussianTrainer::StoredKeyframe& GaussianTrainer::pick_keyframe() {
 void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderState& state) {
   const bool check_visibility = params_.max_invisible_keyframes > 0;
   const bool check_labels = params_.relabel_fraction > 0.f;
-  if (!check_visibility && !check_labels) return;
+  const bool check_usefulness = params_.max_gaussians > 0;
+  if (!check_visibility && !check_labels && !check_usefulness) return;
   const size_t n_pixels = kf.labels.data.size();
   OutputGradients probe;
   probe.rgb.resize(3 * n_pixels);
@@ -176,6 +179,7 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
     const float d = kf.depth.data[p];
     if (!valid_depth(d) || p_c.z() > d + params_.depth_error) continue;  // occluded or unknown
     const float contribution = g.colour[3 * i];
+    usefulness_[i] = contribution;
     if (check_visibility) {
       if (contribution < params_.min_contribution) {
         if (invisible_count_[i] < UINT16_MAX) ++invisible_count_[i];
@@ -206,10 +210,11 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
 void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
                                         const std::vector<uint32_t>& new_id) {
   std::vector<GaussianInit> moved;
-  std::vector<float> confidence;
+  std::vector<float> confidence, usefulness;
   std::vector<uint8_t> stable;
   for (size_t i = 0; i < which.size(); ++i) {
     if (!which[i]) continue;
+    usefulness.push_back(usefulness_[i]);
     GaussianInit g;
     g.position = Eigen::Map<const Eigen::Vector3f>(&map_.positions()[3 * i]);
     g.log_scale = Eigen::Map<const Eigen::Vector3f>(&map_.log_scales()[3 * i]);
@@ -232,6 +237,7 @@ void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
     map_.stable()[i] = stable[k];
   }
   sync_state();
+  std::copy(usefulness.begin(), usefulness.end(), usefulness_.end() - usefulness.size());
 }
 
 void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput* out,
@@ -467,6 +473,24 @@ void GaussianTrainer::prune(KeyframeReport* report) {
       ++report->pruned_invisible;
     }
   }
+  // The budget: of the survivors, the least useful go until max_gaussians remain.
+  const size_t kept = n - static_cast<size_t>(std::count(remove.begin(), remove.end(), 1));
+  if (params_.max_gaussians > 0 && kept > static_cast<size_t>(params_.max_gaussians)) {
+    std::vector<uint32_t> order;
+    order.reserve(kept);
+    for (size_t i = 0; i < n; ++i) {
+      if (!remove[i]) order.push_back(static_cast<uint32_t>(i));
+    }
+    const size_t excess = kept - static_cast<size_t>(params_.max_gaussians);
+    // Ties (equal usefulness) break by index, oldest first, so the result is deterministic.
+    std::nth_element(order.begin(), order.begin() + excess, order.end(),
+                     [this](uint32_t a, uint32_t b) {
+                       return usefulness_[a] < usefulness_[b] ||
+                              (usefulness_[a] == usefulness_[b] && a < b);
+                     });
+    for (size_t k = 0; k < excess; ++k) remove[order[k]] = 1;
+    report->pruned_budget += excess;
+  }
   remove_if(remove);
 }
 
@@ -480,10 +504,12 @@ size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
     if (remove[i]) continue;
     invisible_count_[out] = invisible_count_[i];
     relabel_votes_[out] = relabel_votes_[i];
+    usefulness_[out] = usefulness_[i];
     ++out;
   }
   invisible_count_.resize(out);
   relabel_votes_.resize(out);
+  usefulness_.resize(out);
   return removed;
 }
 
@@ -520,6 +546,7 @@ void GaussianTrainer::set_map(GaussianMap map) {
   adam_.reset();
   invisible_count_.assign(map_.size(), 0);
   relabel_votes_.assign(map_.size(), 0);
+  usefulness_.assign(map_.size(), std::numeric_limits<float>::infinity());
   sync_state();
 }
 

@@ -21,7 +21,7 @@ ObjectPipelineResult run_object_pipeline(const DatasetReader& reader, const Obje
                      [](const TimedPose& a, const TimedPose& b) { return a.first < b.first; });
   }
   objects::ObjectMapper mapper(params.mapper);
-  tracking::KeyframeSelector selector(params.keyframes);
+  KeyframeSelector selector(params.keyframes);
   // Reading (PNG decoding) of frame i + 1 overlaps the mapping of frame i.
   auto read = [&reader](int i) {
     return std::async(std::launch::async, [&reader, i] {

@@ -89,7 +89,7 @@ TEST(ParamsYaml, CoversEveryField) {
   size_t stages = 0;
   for (const auto& [path, n] : keys) stages += path.rfind("tracker.", 0) == 0 ? 1 : 0;
   EXPECT_EQ(initialisers<t::TrackerParams>(), keys["tracker"] + stages) << "TrackerParams" << fix;
-  EXPECT_EQ(initialisers<t::KeyframeSelectorParams>(), keys["mapping_keyframes"])
+  EXPECT_EQ(initialisers<dqo::KeyframeSelectorParams>(), keys["mapping_keyframes"])
       << "KeyframeSelectorParams" << fix;
 }
 

@@ -52,6 +52,7 @@ struct KeyframeReport {
   size_t became_stable = 0;
   size_t relabelled = 0;  // Gaussians whose ID followed the labels (relabel_fraction)
   size_t pruned_stale = 0, pruned_oversized = 0, pruned_invisible = 0;
+  size_t pruned_budget = 0;  // removed to keep Params::max_gaussians
   size_t num_gaussians = 0, num_unstable = 0;
   size_t missing_pixels = 0, error_pixels = 0;
   int iterations = 0;
@@ -140,6 +141,11 @@ class GaussianTrainer {
     // row. 0: IDs never change after birth.
     float relabel_fraction = 0.8f;
     int relabel_keyframes = 2;
+    // The Gaussian budget: past it, after the other pruning rules, the Gaussians whose last
+    // measured contribution to a view that had them in sight (Σ over pixels of T_i α_i) is least
+    // go first. Gaussians not yet reviewed (added by this keyframe) count as most useful: they
+    // were added because the map was missing or wrong there. 0: no budget.
+    int max_gaussians = 0;
 
     uint64_t seed = 1;
   };
@@ -210,6 +216,7 @@ class GaussianTrainer {
   // Per Gaussian, in step with map_.
   std::vector<uint16_t> invisible_count_;
   std::vector<uint8_t> relabel_votes_;
+  std::vector<float> usefulness_;  // last measured contribution; +inf until first reviewed
   size_t relabelled_ = 0;
   std::deque<StoredKeyframe> window_;
   size_t keyframe_count_ = 0;

@@ -28,20 +28,15 @@
 #include <string>
 
 #include "dqo_map/common/dataset.h"
+#include "dqo_map/common/frame_source.h"
 #include "dqo_map/io/trajectory_io.h"
 
 namespace dqo {
 
-class DatasetReader {
+// info(): camera, depth scale, class names and ground-truth objects (own format only);
+// read_frame(i): what the format holds of poses, instances, ground-truth objects and detections.
+class DatasetReader : public FrameSource {
  public:
-  virtual ~DatasetReader() = default;
-
-  // Camera, depth scale, class names and ground-truth objects (own format only).
-  virtual const DatasetInfo& info() const = 0;
-  virtual int num_frames() const = 0;
-  // Frame i of [0, num_frames()): images in memory (depth in metres), pose, and what the format
-  // holds of instances, ground-truth objects and detections. nullopt and *error on failure.
-  virtual std::optional<Frame> read_frame(int i, std::string* error = nullptr) const = 0;
   // "dqo", "tum" or "replica".
   virtual std::string format() const = 0;
   // The folder it reads.

@@ -1,7 +1,7 @@
 #pragma once
 // The object stage over a dataset, without ROS (DESIGN.md "Layers": system/ wires the stages
 // in-process for the offline runner and the benchmarks). For each frame with a pose: the
-// keyframe selector of the mapping stage (tracking::KeyframeSelector) decides whether it is a
+// keyframe selector of the mapping stage (KeyframeSelector) decides whether it is a
 // keyframe; each keyframe goes to the ObjectMapper with the dataset's detections and, for the
 // single-view fallback, its depth. Poses are the dataset's ground truth or a trajectory (for
 // example dqo_track's output) matched to the frames by timestamp.
@@ -12,13 +12,13 @@
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/io/trajectory_io.h"
 #include "dqo_map/objects/object_mapper.h"
-#include "dqo_map/tracking/keyframe_selector.h"
+#include "dqo_map/common/keyframe_selector.h"
 
 namespace dqo::system {
 
 struct ObjectPipelineParams {
   objects::ObjectMapperParams mapper;
-  tracking::KeyframeSelectorParams keyframes;
+  KeyframeSelectorParams keyframes;
   PoseLookupParams pose_lookup;  // trajectory poses at the frames' timestamps
   bool use_depth = true;         // hand the keyframes' depth to the mapper (single-view fallback)
   int max_frames = -1;           // < 0: all frames

@@ -16,7 +16,7 @@
 #include <optional>
 #include <string>
 
-#include "dqo_map/tracking/keyframe_selector.h"
+#include "dqo_map/common/keyframe_selector.h"
 #include "dqo_map/tracking/tracker_params.h"
 
 namespace dqo::tracking {

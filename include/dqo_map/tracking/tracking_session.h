@@ -18,7 +18,7 @@
 
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/geometry/se3.h"
-#include "dqo_map/tracking/keyframe_selector.h"
+#include "dqo_map/common/keyframe_selector.h"
 #include "dqo_map/tracking/params_yaml.h"
 #include "dqo_map/tracking/tracker.h"
 

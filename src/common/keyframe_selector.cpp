@@ -1,8 +1,8 @@
-#include "dqo_map/tracking/keyframe_selector.h"
+#include "dqo_map/common/keyframe_selector.h"
 
 #include <cmath>
 
-namespace dqo::tracking {
+namespace dqo {
 
 bool KeyframeSelector::consider(const SE3& T_wc) {
   ++frames_since_;
@@ -24,4 +24,4 @@ bool KeyframeSelector::consider(const SE3& T_wc) {
   return take;
 }
 
-}  // namespace dqo::tracking
+}  // namespace dqo

@@ -8,7 +8,7 @@
 
 #include "dqo_map/geometry/se3.h"
 
-namespace dqo::tracking {
+namespace dqo {
 
 struct KeyframeSelectorParams {
   double max_rotation_deg = 10.0;
@@ -35,4 +35,4 @@ class KeyframeSelector {
   uint64_t frames_since_ = 0;
 };
 
-}  // namespace dqo::tracking
+}  // namespace dqo

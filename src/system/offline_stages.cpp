@@ -1,0 +1,215 @@
+#include "dqo_map/system/offline_stages.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include "dqo_map/objects/mask_detections.h"
+#include "dqo_map/tracking/tracking_session.h"
+
+namespace dqo::system {
+namespace {
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Moves poses of another world frame onto the ground truth: fixed at the first frame that has a
+// pose and ground truth; poses before it mean nothing in the ground truth's frame (dropped).
+class Anchor {
+ public:
+  explicit Anchor(bool enabled) : enabled_(enabled) {}
+  std::optional<SE3> apply(const Frame& frame, const std::optional<SE3>& T_wc) {
+    if (!enabled_ || !T_wc) return T_wc;
+    if (!anchored_ && frame.has_pose) {
+      T_gt_est_ = frame.T_wc * T_wc->inverse();
+      anchored_ = true;
+    }
+    if (!anchored_) return std::nullopt;
+    return T_gt_est_ * *T_wc;
+  }
+  SE3 apply(const SE3& T_wc) const { return enabled_ && anchored_ ? T_gt_est_ * T_wc : T_wc; }
+
+ private:
+  bool enabled_;
+  bool anchored_ = false;
+  SE3 T_gt_est_;
+};
+
+mapping::MappingEvent to_mapping_event(const objects::ObjectEvent& e) {
+  mapping::MappingEvent m;
+  switch (e.type) {
+    case objects::ObjectEvent::Type::kCreated:
+      m.type = mapping::MappingEvent::Type::kCreated;
+      break;
+    case objects::ObjectEvent::Type::kMerged:
+      m.type = mapping::MappingEvent::Type::kMerged;
+      break;
+    case objects::ObjectEvent::Type::kRemoved:
+      m.type = mapping::MappingEvent::Type::kRemoved;
+      break;
+  }
+  m.id = e.id;
+  m.into_id = e.into_id;
+  return m;
+}
+
+}  // namespace
+
+void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCamera& camera,
+                        bool anchor, OfflineStages* stages) {
+  auto session = std::make_shared<tracking::TrackingSession>(config);
+  auto anchors = std::make_shared<Anchor>(anchor);
+  stages->pose = [session, anchors, camera](const Frame& frame) {
+    const auto t0 = std::chrono::steady_clock::now();
+    FramePose out;
+    const tracking::RgbdInput input{frame.timestamp, &frame.rgb, &frame.depth};
+    const tracking::SessionResult r = session->track(camera, input);
+    out.ms = ms_since(t0);
+    if (r.skipped != tracking::SessionResult::Skip::kNone ||
+        r.track.state != tracking::TrackingState::kOk) {
+      return out;
+    }
+    out.T_wc = anchors->apply(frame, r.track.T_wc);
+    if (out.T_wc && r.keyframe_id) out.keyframe = *r.keyframe_id;
+    return out;
+  };
+  stages->corrected_poses = [session, anchors]() {
+    std::map<mapping::KeyframeId, SE3> out;
+    for (const tracking::CorrectedPose& c : session->corrected_keyframes()) {
+      out[c.id] = anchors->apply(c.T_wc);
+    }
+    return out;
+  };
+}
+
+void add_trajectory_stage(Trajectory trajectory, const PoseLookupParams& lookup,
+                          const KeyframeSelectorParams& keyframes, bool anchor,
+                          OfflineStages* stages) {
+  std::stable_sort(trajectory.begin(), trajectory.end(),
+                   [](const TimedPose& a, const TimedPose& b) { return a.first < b.first; });
+  auto sorted = std::make_shared<Trajectory>(std::move(trajectory));
+  auto selector = std::make_shared<KeyframeSelector>(keyframes);
+  auto anchors = std::make_shared<Anchor>(anchor);
+  auto next_id = std::make_shared<mapping::KeyframeId>(1);
+  stages->pose = [sorted, lookup, selector, anchors, next_id](const Frame& frame) {
+    FramePose out;
+    out.T_wc = anchors->apply(frame, pose_at(*sorted, frame.timestamp, lookup));
+    if (out.T_wc && selector->consider(*out.T_wc)) out.keyframe = (*next_id)++;
+    return out;
+  };
+  stages->corrected_poses = nullptr;
+}
+
+std::vector<mapping::ObjectRecord> to_object_records(
+    const std::vector<objects::MapObject>& objects) {
+  std::vector<mapping::ObjectRecord> out;
+  for (const objects::MapObject& o : objects) {
+    if (!o.has_quadric) continue;
+    mapping::ObjectRecord r;
+    r.id = o.id;
+    r.class_id = o.class_id;
+    r.class_name = o.class_name;
+    r.quadric = o.quadric;
+    r.box = o.has_box ? o.box
+                      : OrientedBox{o.quadric.centre(), o.quadric.rotation(), o.quadric.semi_axes()};
+    r.observations = o.observation_count;
+    r.confidence = o.confidence;
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+InstanceImage instance_for_detections(const InstanceImage& gt,
+                                      const std::vector<Detection2d>& detections) {
+  InstanceImage out(gt.width, gt.height, 1, 0);
+  std::vector<float> best(gt.data.size(), -1.f);
+  for (size_t j = 0; j < detections.size() && j < 65535; ++j) {
+    const Detection2d& d = detections[j];
+    const int u0 = std::max(0, static_cast<int>(std::ceil(d.box.x_min)));
+    const int v0 = std::max(0, static_cast<int>(std::ceil(d.box.y_min)));
+    const int u1 = std::min(gt.width - 1, static_cast<int>(std::floor(d.box.x_max)));
+    const int v1 = std::min(gt.height - 1, static_cast<int>(std::floor(d.box.y_max)));
+    uint32_t id = d.gt_id;
+    if (id == 0) {
+      std::map<uint16_t, int> counts;
+      for (int v = v0; v <= v1; ++v) {
+        for (int u = u0; u <= u1; ++u) {
+          if (gt.at(u, v) != 0) ++counts[gt.at(u, v)];
+        }
+      }
+      int most = 0;
+      for (const auto& [k, n] : counts) {
+        if (n > most) {
+          most = n;
+          id = k;
+        }
+      }
+    }
+    if (id == 0) continue;
+    // The whole instance, not only its part inside the (possibly noisy) box: the mask is the
+    // better outline, the box only says which instance the detection is.
+    for (size_t p = 0; p < gt.data.size(); ++p) {
+      if (gt.data[p] == id && d.score > best[p]) {
+        best[p] = d.score;
+        out.data[p] = static_cast<uint16_t>(j + 1);
+      }
+    }
+  }
+  return out;
+}
+
+std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMapperParams& params,
+                                                        DetectionSource detections,
+                                                        LabelSource labels,
+                                                        const DatasetInfo& info,
+                                                        OfflineStages* stages) {
+  auto mapper = std::make_shared<objects::ObjectMapper>(params);
+  // Mask labels are ground-truth object IDs: their classes come from the ground truth.
+  objects::MaskDetectionParams mask_params;
+  mask_params.default_class = {0, "object"};
+  for (const GtObject& o : info.objects) mask_params.classes[o.id] = {o.class_id, o.class_name};
+  stages->objects = [mapper, detections, labels, mask_params](const mapping::MappingKeyframe& kf,
+                                                   const Frame& frame) {
+    const auto t0 = std::chrono::steady_clock::now();
+    objects::ObjectKeyFrame okf;
+    okf.id = kf.id;
+    okf.stamp = kf.stamp;
+    okf.camera = kf.camera;
+    okf.T_wc = kf.T_wc;
+    okf.depth.data = kf.depth.data.data();
+    okf.depth.width = kf.depth.width;
+    okf.depth.height = kf.depth.height;
+    InstanceImage detector_instance;  // k+1 = input detection k (mask detections only)
+    if (detections == DetectionSource::kMasks) {
+      objects::LabelImage mask(frame.instance.width, frame.instance.height, 1, 0u);
+      std::copy(frame.instance.data.begin(), frame.instance.data.end(), mask.data.begin());
+      objects::MaskDetections md = objects::detections_from_mask(mask, mask_params);
+      okf.detections = std::move(md.detections);
+      detector_instance = std::move(md.instance);
+    } else {
+      okf.detections = frame.detections;
+    }
+    std::string error;
+    const objects::KeyFrameAssociation r = mapper->process_keyframe(okf, &error);
+    ObjectStageOutput out;
+    out.keyframe_objects.keyframe_id = kf.id;
+    out.keyframe_objects.detections = r.filtered;
+    out.keyframe_objects.object_ids.assign(r.filtered_object_ids.begin(),
+                                           r.filtered_object_ids.end());
+    if (labels == LabelSource::kMasks && !frame.instance.empty()) {
+      out.keyframe_objects.instance =
+          detector_instance.empty()
+              ? instance_for_detections(frame.instance, r.filtered)
+              : objects::renumber_instance(detector_instance, r.filtered_source);
+    }
+    for (const objects::ObjectEvent& e : r.events) out.events.push_back(to_mapping_event(e));
+    out.objects = to_object_records(mapper->objects());
+    out.ms = ms_since(t0);
+    return out;
+  };
+  return mapper;
+}
+
+}  // namespace dqo::system

@@ -1,0 +1,440 @@
+// dqo_map_offline: the whole pipeline without ROS (the stage classes the three nodes call, wired
+// in-process by system/) on a dataset folder (own format, TUM RGB-D, Replica) or a scene YAML
+// rendered in memory. Writes into --out:
+//   objects.txt                    the objects, one line each (RO-MAP / VOOM format)
+//   map.dqomap                     the map file (Gaussians, objects, keyframe poses, next ID)
+//   gaussians.ply                  the whole map in the 3DGS PLY layout with object_id
+//   object_<id>_gaussians.ply      each object's Gaussians
+//   object_<id>_mesh.ply           each object's TSDF mesh
+//   timings.json                   per stage, per frame and total; frames per second; peak memory
+//   metrics.json                   where ground truth exists: ATE, objects, reconstruction
+// The reduced build (no OpenCV, Ceres, Open3D: the GPU machine) takes scene YAMLs only, with
+// ground-truth poses and instance labels, and writes neither meshes nor metrics.
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "dqo_map/common/object_list.h"
+#include "dqo_map/common/progress.h"
+#include "dqo_map/common/statistics.h"
+#include "dqo_map/gaussians/gaussian_ply.h"
+#include "dqo_map/mapping/map_file.h"
+#include "dqo_map/mapping/params_yaml.h"
+#include "dqo_map/sim/scene_frame_source.h"
+#include "dqo_map/sim/scene_loader.h"
+#include "dqo_map/system/offline_mapping.h"
+#ifdef DQO_FULL_PIPELINE
+#include "dqo_map/io/dataset_reader.h"
+#include "dqo_map/io/mesh_io.h"
+#include "dqo_map/io/trajectory_io.h"
+#include "dqo_map/objects/params_yaml.h"
+#include "dqo_map/system/object_meshes.h"
+#include "dqo_map/system/offline_metrics.h"
+#include "dqo_map/system/offline_stages.h"
+#endif
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kUsage[] =
+    "usage: dqo_map_offline INPUT --out DIR [--poses gt|track|FILE] [--labels masks|quadrics]\n"
+    "                       [--backend auto|cpu] [--scale S] [--frames N] [--every K]\n"
+    "                       [--config mapping.yaml] [--tracking-config tracking.yaml]\n"
+    "                       [--objects-config objects.yaml] [--max-gaussians N] [--threads T]\n"
+    "                       [--no-noise] [--no-meshes] [--quiet]\n"
+    "  INPUT              a dataset folder (own format, TUM RGB-D, Replica) or a scene YAML\n"
+    "                     (rendered in memory, with its sensor noise unless --no-noise)\n"
+    "  --out DIR          output folder (created)\n"
+    "  --poses gt         the input's ground-truth poses (default where it has them)\n"
+    "  --poses track      the tracker's (default without ground truth)\n"
+    "  --poses FILE       a TUM trajectory matched by timestamp (e.g. dqo_track's)\n"
+    "  --labels masks     pixel labels from the input's instance masks (default where it has them)\n"
+    "  --labels quadrics  pixel labels from the objects' ellipsoids and detection boxes\n"
+    "  --backend B        auto (the GPU when one is there) or cpu\n"
+    "  --scale S          image size factor (e.g. 0.5: half width and height)\n"
+    "  --frames N         at most N frames (after --every)\n"
+    "  --every K          every K-th frame only\n"
+    "  --config FILE      mapping parameters (config/mapping.yaml); --tracking-config and\n"
+    "                     --objects-config for the other stages\n"
+    "  --max-gaussians N  the Gaussian budget (overrides the config's)\n"
+    "  --threads T        CPU threads of the rasteriser and the renderer (default: all)\n"
+    "  --no-meshes        skip the per-object meshes (and the reconstruction metrics)\n";
+
+int usage_error(const std::string& message) {
+  std::fprintf(stderr, "dqo_map_offline: %s\n%s", message.c_str(), kUsage);
+  return 2;
+}
+
+int fail(const std::string& message) {
+  std::fprintf(stderr, "dqo_map_offline: %s\n", message.c_str());
+  return 1;
+}
+
+struct Options {
+  std::string input, out, poses, labels, backend, config, tracking_config, objects_config;
+  double scale = 1.0;
+  int frames = -1, every = 1, max_gaussians = -1, threads = 0;
+  bool noise = true, meshes = true, quiet = false;
+};
+
+bool parse_int(const char* v, int lo, int* out) {
+  char* end = nullptr;
+  const long n = std::strtol(v, &end, 10);
+  if (end == v || *end != '\0' || n < lo || n > 2000000000L) return false;
+  *out = static_cast<int>(n);
+  return true;
+}
+
+// Per-stage summary of a list of milliseconds.
+std::string stage_json(const std::vector<double>& ms) {
+  std::vector<double> sorted = ms;
+  double total = 0.0, max = 0.0;
+  for (const double m : ms) {
+    total += m;
+    max = std::max(max, m);
+  }
+  std::ostringstream o;
+  o << "{\"count\": " << ms.size() << ", \"mean_ms\": " << (ms.empty() ? 0.0 : total / ms.size())
+    << ", \"median_ms\": " << (ms.empty() ? 0.0 : dqo::median(sorted)) << ", \"max_ms\": " << max
+    << ", \"total_s\": " << total / 1000.0 << ", \"per_item_ms\": [";
+  for (size_t i = 0; i < ms.size(); ++i) o << (i ? ", " : "") << std::round(ms[i] * 100) / 100;
+  o << "]}";
+  return o.str();
+}
+
+double peak_rss_mb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // kilobytes on Linux
+}
+
+bool write_text(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream out(tmp);
+    out << text;
+    if (!out) return false;
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  return !ec;
+}
+
+bool is_scene_yaml(const std::string& input) {
+  const std::string ext = fs::path(input).extension().string();
+  return fs::is_regular_file(input) && (ext == ".yaml" || ext == ".yml");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  int positional = 0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
+    if (a == "-h" || a == "--help") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    } else if (a == "--no-noise") {
+      o.noise = false;
+    } else if (a == "--no-meshes") {
+      o.meshes = false;
+    } else if (a == "--quiet") {
+      o.quiet = true;
+    } else if (a.rfind("--", 0) == 0) {
+      const char* v = value();
+      if (!v) return usage_error(a + " needs a value");
+      if (a == "--out") {
+        o.out = v;
+      } else if (a == "--poses") {
+        o.poses = v;
+      } else if (a == "--labels") {
+        o.labels = v;
+      } else if (a == "--backend") {
+        o.backend = v;
+      } else if (a == "--config") {
+        o.config = v;
+      } else if (a == "--tracking-config") {
+        o.tracking_config = v;
+      } else if (a == "--objects-config") {
+        o.objects_config = v;
+      } else if (a == "--scale") {
+        char* end = nullptr;
+        o.scale = std::strtod(v, &end);
+        if (end == v || *end != '\0' || !(o.scale > 0.0) || o.scale > 4.0) {
+          return usage_error("--scale takes a number in (0, 4]");
+        }
+      } else if (a == "--frames") {
+        if (!parse_int(v, 1, &o.frames)) return usage_error("--frames takes a whole number >= 1");
+      } else if (a == "--every") {
+        if (!parse_int(v, 1, &o.every)) return usage_error("--every takes a whole number >= 1");
+      } else if (a == "--max-gaussians") {
+        if (!parse_int(v, 0, &o.max_gaussians)) return usage_error("--max-gaussians takes a whole number >= 0");
+      } else if (a == "--threads") {
+        if (!parse_int(v, 0, &o.threads)) return usage_error("--threads takes a whole number >= 0");
+      } else {
+        return usage_error("unknown option " + a);
+      }
+    } else if (positional++ == 0) {
+      o.input = a;
+    } else {
+      return usage_error("unexpected argument " + a);
+    }
+  }
+  if (o.input.empty()) return usage_error("no INPUT given");
+  if (o.out.empty()) return usage_error("--out is required");
+  if (!o.labels.empty() && o.labels != "masks" && o.labels != "quadrics") {
+    return usage_error("--labels must be masks or quadrics, not '" + o.labels + "'");
+  }
+
+  // Parameters.
+  std::string error;
+  dqo::mapping::GaussianMapperParams params;
+  if (!o.config.empty()) {
+    auto loaded = dqo::mapping::load_mapping_params(o.config, &error);
+    if (!loaded) return fail(error);
+    params = *loaded;
+  }
+  if (!o.backend.empty() && !dqo::mapping::parse_backend(o.backend, &params.backend)) {
+    return usage_error("--backend must be auto, cpu or cuda, not '" + o.backend + "'");
+  }
+  if (o.max_gaussians >= 0) params.max_gaussians = o.max_gaussians;
+  if (o.threads > 0) params.threads = o.threads;
+
+  // Input.
+  std::shared_ptr<const dqo::FrameSource> source;
+  std::string input_kind;
+  if (is_scene_yaml(o.input)) {
+    dqo::sim::MeshLoader loader;
+#ifdef DQO_FULL_PIPELINE
+    loader = &dqo::load_mesh;
+#endif
+    auto scene = dqo::sim::load_scene(o.input, loader, &error);
+    if (!scene) return fail(error);
+    source = std::make_shared<dqo::sim::SceneFrameSource>(std::move(*scene), o.scale, o.noise,
+                                                           o.threads);
+    input_kind = std::string("scene, ") + (o.noise ? "with sensor noise" : "noise-free");
+  } else {
+#ifdef DQO_FULL_PIPELINE
+    auto reader = dqo::open_dataset(o.input, &error);
+    if (!reader) return fail(error);
+    input_kind = reader->format() + " dataset";
+    std::shared_ptr<const dqo::FrameSource> r(std::move(reader));
+    source = o.scale == 1.0 ? r : std::make_shared<dqo::ScaledFrameSource>(r, o.scale);
+#else
+    return fail(o.input + ": this build reads scene YAML files only (datasets need io/: OpenCV, Open3D)");
+#endif
+  }
+  const dqo::DatasetInfo& info = source->info();
+  if (source->num_frames() < 1) return fail(o.input + " holds no frames");
+
+  // What the input has: read the first frame to know.
+  auto first = source->read_frame(0, &error);
+  if (!first) return fail("frame 0: " + error);
+  const bool has_gt_poses = first->has_pose;
+  const bool has_masks = !first->instance.empty();
+  const bool has_detections_file = !first->detections.empty() || input_kind.rfind("scene", 0) == 0;
+  std::string poses = o.poses.empty() ? (has_gt_poses ? "gt" : "track") : o.poses;
+  std::string labels = o.labels.empty() ? (has_masks ? "masks" : "quadrics") : o.labels;
+  if (poses == "gt" && !has_gt_poses) return fail(o.input + " has no ground-truth poses: use --poses track or FILE");
+  if (labels == "masks" && !has_masks) return fail(o.input + " has no instance masks: use --labels quadrics");
+
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec || !fs::is_directory(o.out)) return fail("cannot create the output folder " + o.out);
+  const fs::path out(o.out);
+
+  // Stages.
+  dqo::system::OfflineStages stages;
+  dqo::system::OfflineMappingParams run_params;
+  run_params.max_frames = o.frames;
+  run_params.every = o.every;
+#ifdef DQO_FULL_PIPELINE
+  dqo::tracking::TrackingConfig tracking_config;
+  if (!o.tracking_config.empty()) {
+    auto loaded = dqo::tracking::load_tracking_config(o.tracking_config, &error);
+    if (!loaded) return fail(error);
+    tracking_config = *loaded;
+  }
+  run_params.keyframes = tracking_config.mapping_keyframes;
+  if (poses == "track") {
+    dqo::system::add_tracking_stage(tracking_config, info.camera, has_gt_poses, &stages);
+  } else if (poses != "gt") {
+    auto trajectory = dqo::read_tum_trajectory(poses, &error);
+    if (!trajectory) return fail(error);
+    dqo::system::add_trajectory_stage(std::move(*trajectory), dqo::PoseLookupParams(),
+                                      tracking_config.mapping_keyframes, has_gt_poses, &stages);
+  }
+  dqo::objects::ObjectMapperParams object_params;
+  if (!o.objects_config.empty()) {
+    auto loaded = dqo::objects::load_object_params(o.objects_config, &error);
+    if (!loaded) return fail(error);
+    object_params = *loaded;
+  }
+  if (!has_detections_file && !has_masks) {
+    return fail(o.input + " has neither detections (detections.txt) nor instance masks: no objects "
+                "can be found (give it a detections.txt, e.g. from a detector)");
+  }
+  const auto detection_source = has_detections_file ? dqo::system::DetectionSource::kDataset
+                                                    : dqo::system::DetectionSource::kMasks;
+  const auto object_mapper = dqo::system::add_object_stage(
+      object_params, detection_source,
+      labels == "masks" ? dqo::system::LabelSource::kMasks : dqo::system::LabelSource::kQuadrics,
+      info, &stages);
+  const std::string objects_from =
+      detection_source == dqo::system::DetectionSource::kDataset ? "detections" : "instance masks";
+#else
+  if (poses != "gt") return fail("this build maps with ground-truth poses only (--poses gt)");
+  if (labels != "masks") return fail("this build labels pixels from instance masks only (--labels masks)");
+  const std::string objects_from = "ground truth";
+#endif
+
+  std::fprintf(stderr,
+               "dqo_map_offline: %s (%s), %d frames of %dx%d, every %d; poses %s, labels %s, objects "
+               "from %s, backend %s, budget %d Gaussians\n",
+               o.input.c_str(), input_kind.c_str(), source->num_frames(), info.camera.width,
+               info.camera.height, o.every, poses.c_str(), labels.c_str(), objects_from.c_str(),
+               dqo::mapping::to_string(params.backend), params.max_gaussians);
+
+  std::unique_ptr<dqo::mapping::GaussianMapper> mapper;
+  try {
+    mapper = std::make_unique<dqo::mapping::GaussianMapper>(params);
+  } catch (const std::exception& e) {
+    return fail(e.what());
+  }
+  const int total = std::min(o.frames > 0 ? o.frames : source->num_frames(),
+                             (source->num_frames() + o.every - 1) / o.every);
+  dqo::ProgressBar bar("mapping", total);
+  const dqo::system::OfflineResult run = dqo::system::run_offline_mapping(
+      *source, stages, run_params, mapper.get(), [&](int done, int) {
+        if (!o.quiet) bar.update(done);
+      });
+  for (const std::string& w : run.warnings) std::fprintf(stderr, "dqo_map_offline: %s\n", w.c_str());
+  if (!run.ok) std::fprintf(stderr, "dqo_map_offline: stopped early: %s\n", run.error.c_str());
+
+  // Objects.
+  std::vector<dqo::mapping::ObjectRecord> objects;
+  dqo::mapping::ObjectId next_id = 1;
+#ifdef DQO_FULL_PIPELINE
+  objects = dqo::system::to_object_records(object_mapper->objects());
+  next_id = object_mapper->next_id();
+#else
+  for (const dqo::GtObject& g : info.objects) {
+    objects.push_back(dqo::system::object_record_from_box(g.id, g.class_id, g.class_name, g.box));
+    next_id = std::max<dqo::mapping::ObjectId>(next_id, g.id + 1);
+  }
+#endif
+  mapper->set_objects(objects);
+  std::vector<dqo::ObjectListEntry> entries;
+  for (const auto& r : objects) entries.push_back(dqo::make_object_list_entry(r.id, r.class_id, r.box));
+  if (!dqo::write_object_list((out / "objects.txt").string(), entries, &error)) return fail(error);
+
+  // The map and the Gaussians.
+  if (!dqo::mapping::save_map_file((out / "map.dqomap").string(), mapper->snapshot(next_id), &error)) {
+    return fail(error);
+  }
+  if (!dqo::gs::save_gaussians_ply((out / "gaussians.ply").string(), mapper->map(), nullptr, &error)) {
+    return fail(error);
+  }
+  const std::vector<dqo::mapping::ObjectSummary> summaries = mapper->list_objects();
+  for (const auto& s : summaries) {
+    const std::vector<uint32_t> idx = mapper->map().indices_of(static_cast<uint32_t>(s.object.id));
+    const fs::path p = out / ("object_" + std::to_string(s.object.id) + "_gaussians.ply");
+    if (!dqo::gs::save_gaussians_ply(p.string(), mapper->map(), &idx, &error)) return fail(error);
+  }
+
+  // Meshes and metrics.
+  std::string metrics_text;
+  std::string table;
+  double mesh_seconds = 0.0;
+#ifdef DQO_FULL_PIPELINE
+  std::map<uint64_t, dqo::TriangleMesh> meshes;
+  if (o.meshes) {
+    const auto t0 = std::chrono::steady_clock::now();
+    dqo::ProgressBar mesh_bar("meshes", static_cast<int>(objects.size()));
+    int done = 0;
+    for (const auto& r : objects) {
+      auto m = dqo::system::object_mesh(*mapper, r.id, dqo::mesh::TsdfParams(), &error);
+      if (!m) {
+        std::fprintf(stderr, "\ndqo_map_offline: no mesh: %s\n", error.c_str());
+      } else {
+        const fs::path p = out / ("object_" + std::to_string(r.id) + "_mesh.ply");
+        if (!dqo::save_mesh_ply(p.string(), *m, &error)) return fail(error);
+        meshes[r.id] = std::move(*m);
+      }
+      if (!o.quiet) mesh_bar.update(++done);
+    }
+    mesh_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  const bool has_gt = !info.objects.empty() || !run.ground_truth.empty();
+  if (has_gt) {
+    const auto metrics = dqo::system::evaluate_offline_run(
+        run, objects, mapper->keyframe_poses(), info,
+        [&meshes](uint64_t id) -> std::optional<dqo::TriangleMesh> {
+          const auto it = meshes.find(id);
+          if (it == meshes.end()) return std::nullopt;
+          return it->second;
+        });
+    metrics_text = dqo::system::metrics_json(metrics);
+    if (metrics.recon && o.meshes) table = dqo::mesh::format_recon_table(*metrics.recon);
+    if (metrics.ate) std::printf("ATE RMSE: %.2f cm over %d frames\n", 100 * metrics.ate->rmse_m, metrics.ate->matched);
+    if (metrics.objects) {
+      std::printf("objects: %d of %d found, %d spurious; mean 3D IoU %.3f, 2D IoU %.3f, CDE %.1f cm\n",
+                  metrics.objects->num_matched, metrics.objects->num_gt, metrics.objects->num_spurious,
+                  metrics.objects->mean_iou_3d, metrics.objects->mean_iou_2d,
+                  100 * metrics.objects->mean_cde);
+    }
+  }
+#endif
+  if (!metrics_text.empty() && !write_text(out / "metrics.json", metrics_text)) {
+    return fail("cannot write metrics.json");
+  }
+
+  // Timings.
+  const double seconds = run.seconds;
+  size_t gaussians = mapper->map().size();
+  std::ostringstream t;
+  t << "{\n  \"input\": \"" << o.input << "\",\n  \"width\": " << info.camera.width
+    << ", \"height\": " << info.camera.height << ",\n  \"frames\": " << run.frames
+    << ", \"keyframes\": " << run.keyframes << ", \"dropped_keyframes\": " << mapper->dropped()
+    << ",\n  \"total_s\": " << seconds << ", \"frames_per_second\": "
+    << (seconds > 0 ? run.frames / seconds : 0.0) << ", \"mesh_s\": " << mesh_seconds
+    << ",\n  \"peak_memory_mb\": " << peak_rss_mb() << ", \"gaussians\": " << gaussians
+    << ", \"map_mb\": " << mapper->map().bytes_used() / 1e6
+    << ",\n  \"stages\": {\n    \"read\": " << stage_json(run.timings.read_ms)
+    << ",\n    \"pose\": " << stage_json(run.timings.pose_ms)
+    << ",\n    \"objects\": " << stage_json(run.timings.objects_ms)
+    << ",\n    \"mapping\": " << stage_json(run.timings.mapping_ms) << "\n  }\n}\n";
+  if (!write_text(out / "timings.json", t.str())) return fail("cannot write timings.json");
+
+  std::printf("%d frames, %d keyframes in %.1f s (%.2f frames/s, %.0f ms per keyframe mapping); %zu Gaussians "
+              "(%.1f MB), peak memory %.0f MB\n",
+              run.frames, run.keyframes, seconds, seconds > 0 ? run.frames / seconds : 0.0,
+              run.timings.mapping_ms.empty() ? 0.0
+                                             : [&] {
+                                                 double s = 0;
+                                                 for (double m : run.timings.mapping_ms) s += m;
+                                                 return s / run.timings.mapping_ms.size();
+                                               }(),
+              gaussians, mapper->map().bytes_used() / 1e6, peak_rss_mb());
+  for (const auto& s : summaries) {
+    std::printf("  object %llu %s: %zu Gaussians\n", static_cast<unsigned long long>(s.object.id),
+                s.known ? s.object.class_name.c_str() : "(not reported)", s.num_gaussians);
+  }
+  if (!table.empty()) std::printf("%s", table.c_str());
+  std::printf("output: %s\n", fs::absolute(out).c_str());
+  return run.ok ? 0 : 1;
+}
