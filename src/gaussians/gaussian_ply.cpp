@@ -378,6 +378,10 @@ std::optional<GaussianMap> load_gaussians_ply(const std::string& path, std::stri
   }
   in.seekg(0, std::ios::end);
   const std::streamoff file_size = in.tellg();
+  if (file_size < 0) {
+    fail(error, path + ": cannot read its size");
+    return std::nullopt;
+  }
   in.seekg(0, std::ios::beg);
 
   const std::optional<PlyHeader> header = read_header(in, path, error);

@@ -355,7 +355,7 @@ void GaussianMapper::render(const PinholeCamera& camera, const SE3& T_wc, gs::Re
   trainer_->render(camera, T_wc, out);
 }
 
-std::vector<ObjectView> GaussianMapper::object_views(ObjectId id) {
+std::vector<ObjectView> GaussianMapper::object_views(ObjectId id, bool with_scene_depth) {
   std::vector<const KeyframePose*> candidates;
   for (const KeyframePose& k : keyframes_) {
     const auto it = keyframe_objects_.find(k.id);
@@ -395,7 +395,19 @@ std::vector<ObjectView> GaussianMapper::object_views(ObjectId id) {
       for (int c = 0; c < 3; ++c) v.rgb[3 * p + c] = r.rgb[3 * p + c] / r.alpha[p];
       ++surface;
     }
-    if (surface > 0) views.push_back(std::move(v));
+    if (surface == 0) continue;
+    if (with_scene_depth) {
+      gs::RenderOutput scene;
+      trainer_->rasteriser().forward(trainer_->map(), k->camera, k->T_wc.inverse(), settings,
+                                     &scene, nullptr);
+      v.scene_depth.assign(scene.depth.size(), 0.f);
+      for (size_t p = 0; p < scene.depth.size(); ++p) {
+        if (scene.alpha[p] >= params_.mesh_min_alpha && std::isfinite(scene.depth[p])) {
+          v.scene_depth[p] = scene.depth[p];
+        }
+      }
+    }
+    views.push_back(std::move(v));
   }
   return views;
 }

@@ -83,7 +83,7 @@ class ByteWriter {
   }
   template <typename T>
   void put_array(const std::vector<T>& v) {
-    out_->append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+    if (!v.empty()) out_->append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
   }
   void put_bytes(const std::string& s) { out_->append(s); }
   void put_vector(const Eigen::Vector3d& v) {
@@ -123,6 +123,7 @@ class ByteReader {
       ok_ = false;
       return v;
     }
+    if (n == 0) return v;  // memcpy from/to a null pointer is undefined even for 0 bytes
     v.resize(n);
     std::memcpy(v.data(), p_, n * sizeof(T));
     p_ += n * sizeof(T);

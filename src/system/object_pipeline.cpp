@@ -7,7 +7,7 @@
 
 namespace dqo::system {
 
-ObjectPipelineResult run_object_pipeline(const DatasetReader& reader, const ObjectPipelineParams& params,
+ObjectPipelineResult run_object_pipeline(const FrameSource& reader, const ObjectPipelineParams& params,
                                          const Trajectory* trajectory, const ProgressCallback& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   ObjectPipelineResult result;

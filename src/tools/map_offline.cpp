@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -70,7 +71,8 @@ constexpr char kUsage[] =
     "                     --objects-config for the other stages\n"
     "  --max-gaussians N  the Gaussian budget (overrides the config's)\n"
     "  --threads T        CPU threads of the rasteriser and the renderer (default: all)\n"
-    "  --no-meshes        skip the per-object meshes (and the reconstruction metrics)\n";
+    "  --no-meshes        skip the per-object meshes (and the reconstruction metrics)\n"
+    "  --map FILE         no mapping: mesh and evaluate the map of a finished run (map.dqomap)\n";
 
 int usage_error(const std::string& message) {
   std::fprintf(stderr, "dqo_map_offline: %s\n%s", message.c_str(), kUsage);
@@ -83,7 +85,7 @@ int fail(const std::string& message) {
 }
 
 struct Options {
-  std::string input, out, poses, labels, backend, config, tracking_config, objects_config;
+  std::string input, out, poses, labels, backend, config, tracking_config, objects_config, map;
   double scale = 1.0;
   int frames = -1, every = 1, max_gaussians = -1, threads = 0;
   bool noise = true, meshes = true, quiet = false;
@@ -165,6 +167,8 @@ int main(int argc, char** argv) {
         o.labels = v;
       } else if (a == "--backend") {
         o.backend = v;
+      } else if (a == "--map") {
+        o.map = v;
       } else if (a == "--config") {
         o.config = v;
       } else if (a == "--tracking-config") {
@@ -318,10 +322,21 @@ int main(int argc, char** argv) {
   const int total = std::min(o.frames > 0 ? o.frames : source->num_frames(),
                              (source->num_frames() + o.every - 1) / o.every);
   dqo::ProgressBar bar("mapping", total);
-  const dqo::system::OfflineResult run = dqo::system::run_offline_mapping(
-      *source, stages, run_params, mapper.get(), [&](int done, int) {
-        if (!o.quiet) bar.update(done);
-      });
+  dqo::system::OfflineResult run;
+  std::optional<dqo::mapping::MapFileContents> loaded_map;
+  if (o.map.empty()) {
+    run = dqo::system::run_offline_mapping(*source, stages, run_params, mapper.get(),
+                                           [&](int done, int) {
+                                             if (!o.quiet) bar.update(done);
+                                           });
+  } else {
+    loaded_map = dqo::mapping::load_map_file(o.map, &error);
+    if (!loaded_map) return fail(error);
+    std::string warning;
+    mapper->restore(*loaded_map, &warning);
+    if (!warning.empty()) std::fprintf(stderr, "dqo_map_offline: %s: %s\n", o.map.c_str(), warning.c_str());
+    run.ok = true;
+  }
   for (const std::string& w : run.warnings) std::fprintf(stderr, "dqo_map_offline: %s\n", w.c_str());
   if (!run.ok) std::fprintf(stderr, "dqo_map_offline: stopped early: %s\n", run.error.c_str());
 
@@ -329,8 +344,13 @@ int main(int argc, char** argv) {
   std::vector<dqo::mapping::ObjectRecord> objects;
   dqo::mapping::ObjectId next_id = 1;
 #ifdef DQO_FULL_PIPELINE
-  objects = dqo::system::to_object_records(object_mapper->objects());
-  next_id = object_mapper->next_id();
+  if (loaded_map) {
+    objects = loaded_map->objects;
+    next_id = loaded_map->next_object_id;
+  } else {
+    objects = dqo::system::to_object_records(object_mapper->objects());
+    next_id = object_mapper->next_id();
+  }
 #else
   for (const dqo::GtObject& g : info.objects) {
     objects.push_back(dqo::system::object_record_from_box(g.id, g.class_id, g.class_name, g.box));
@@ -367,7 +387,13 @@ int main(int argc, char** argv) {
     dqo::ProgressBar mesh_bar("meshes", static_cast<int>(objects.size()));
     int done = 0;
     for (const auto& r : objects) {
-      auto m = dqo::system::object_mesh(*mapper, r.id, dqo::mesh::TsdfParams(), &error);
+      dqo::mesh::SupportClosureInfo closure;
+      auto m = dqo::system::object_mesh(*mapper, r.id, dqo::system::ObjectMeshParams(), &error,
+                                        &closure);
+      if (!closure.closed) {
+        std::fprintf(stderr, "\ndqo_map_offline: object %llu: contact face left open: %s\n",
+                     static_cast<unsigned long long>(r.id), closure.reason);
+      }
       if (!m) {
         std::fprintf(stderr, "\ndqo_map_offline: no mesh: %s\n", error.c_str());
       } else {

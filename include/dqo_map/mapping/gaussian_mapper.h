@@ -86,6 +86,9 @@ struct ObjectView {
   SE3 T_wc;
   std::vector<float> rgb;    // 3 per pixel, [0, 1]
   std::vector<float> depth;  // metres; 0 where the render is less opaque than mesh_min_alpha
+  // The whole map's surface depth from the same view (with_scene_depth), 0 where it has none:
+  // around the object's silhouette, the surface it stands on.
+  std::vector<float> scene_depth;
 };
 
 class GaussianMapper {
@@ -126,7 +129,7 @@ class GaussianMapper {
   void render(const PinholeCamera& camera, const SE3& T_wc, gs::RenderOutput* out);
   // Renders of the object's Gaussians alone from (at most mesh_views of) the mapped keyframes that
   // saw it; for the background (0), from every mapped keyframe (at most mesh_views).
-  std::vector<ObjectView> object_views(ObjectId id);
+  std::vector<ObjectView> object_views(ObjectId id, bool with_scene_depth = false);
   const std::vector<KeyframePose>& keyframe_poses() const { return keyframes_; }
   size_t keyframes_mapped() const { return keyframes_.size(); }
 

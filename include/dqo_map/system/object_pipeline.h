@@ -53,7 +53,7 @@ using ProgressCallback = std::function<void(int done, int total)>;
 // trajectory: nullptr for the dataset's ground-truth poses; otherwise T_world_camera by time
 // (frames it cannot give a pose for are skipped). A frame that cannot be read stops the run
 // (ok = false, error names the frame); what was mapped until then is returned.
-ObjectPipelineResult run_object_pipeline(const DatasetReader& reader, const ObjectPipelineParams& params,
+ObjectPipelineResult run_object_pipeline(const FrameSource& reader, const ObjectPipelineParams& params,
                                          const Trajectory* trajectory = nullptr,
                                          const ProgressCallback& progress = {});
 

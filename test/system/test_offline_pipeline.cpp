@@ -1,0 +1,212 @@
+// The offline pipeline end to end on the `tiny` scene rendered in memory, against its ground truth:
+// objects (the object stage, the same as system::run_object_pipeline gives), poses (ground truth,
+// and a trajectory file in another world frame anchored back onto it), the Gaussian map with its
+// object IDs, and per-object meshes against the ground-truth meshes.
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "dqo_map/common/tum_trajectory.h"
+#include "dqo_map/eval/object_metrics.h"
+#include "dqo_map/io/mesh_io.h"
+#include "dqo_map/mesh/object_recon.h"
+#include "dqo_map/sim/scene_frame_source.h"
+#include "dqo_map/sim/scene_loader.h"
+#include "dqo_map/system/object_meshes.h"
+#include "dqo_map/system/object_pipeline.h"
+#include "dqo_map/system/offline_metrics.h"
+#include "dqo_map/system/offline_stages.h"
+
+namespace dqo::system {
+namespace {
+
+std::shared_ptr<sim::SceneFrameSource> tiny_source() {
+  std::string error;
+  auto scene = sim::load_scene(std::string(DQO_SOURCE_DIR) + "/config/scenes/tiny.yaml",
+                               &dqo::load_mesh, &error);
+  EXPECT_TRUE(scene) << error;
+  return std::make_shared<sim::SceneFrameSource>(std::move(*scene), 1.0, false, 2);
+}
+
+mapping::GaussianMapperParams mapper_params() {
+  mapping::GaussianMapperParams p;
+  p.trainer.iterations = 20;
+  p.threads = 2;
+  return p;
+}
+
+struct TinyRun {
+  OfflineResult result;
+  std::unique_ptr<mapping::GaussianMapper> mapper;
+  std::shared_ptr<objects::ObjectMapper> objects;
+};
+
+TinyRun run_tiny(const FrameSource& source, OfflineStages stages, LabelSource labels) {
+  TinyRun run;
+  run.mapper = std::make_unique<mapping::GaussianMapper>(mapper_params());
+  run.objects = add_object_stage(objects::ObjectMapperParams(), DetectionSource::kDataset, labels,
+                                 source.info(), &stages);
+  run.result = run_offline_mapping(source, stages, OfflineMappingParams(), run.mapper.get());
+  run.mapper->set_objects(to_object_records(run.objects->objects()));
+  return run;
+}
+
+const TinyRun& ground_truth_run() {
+  static const auto source = tiny_source();
+  static const TinyRun run = run_tiny(*source, OfflineStages(), LabelSource::kMasks);
+  return run;
+}
+
+TEST(OfflinePipeline, TinyObjectsPosesAndGaussians) {
+  const auto source = tiny_source();
+  const TinyRun& run = ground_truth_run();
+  ASSERT_TRUE(run.result.ok) << run.result.error;
+  EXPECT_EQ(run.result.frames, source->num_frames());
+  EXPECT_EQ(run.result.frames_without_pose, 0);
+  EXPECT_GT(run.result.keyframes, 5);
+  EXPECT_EQ(static_cast<size_t>(run.result.keyframes), run.result.reports.size());
+  for (const auto& r : run.result.reports) EXPECT_TRUE(r.labelled);
+
+  // Objects against the ground truth: found, none spurious, centres within 3 cm.
+  const auto records = to_object_records(run.objects->objects());
+  const OfflineMetrics m = evaluate_offline_run(run.result, records, run.mapper->keyframe_poses(),
+                                                source->info(), {});
+  ASSERT_TRUE(m.objects);
+  ASSERT_TRUE(m.ate);
+  EXPECT_LT(m.ate->rmse_m, 1e-9);  // ground-truth poses
+  EXPECT_GE(m.objects->num_matched, 3) << "of " << m.objects->num_gt;
+  EXPECT_EQ(m.objects->num_spurious, 0);
+  EXPECT_LT(m.objects->mean_cde, 0.03);
+
+  // The Gaussians of each matched object lie on it: within 2 cm of the ground-truth box.
+  const DatasetInfo& info = source->info();
+  for (const eval::ObjectMatch& match : m.objects->matches) {
+    const GtObject* gt = nullptr;
+    for (const GtObject& g : info.objects) gt = g.id == match.gt_id ? &g : gt;
+    ASSERT_NE(gt, nullptr);
+    const gs::GaussianMap g = run.mapper->object_gaussians(match.est_id);
+    ASSERT_GT(g.size(), 20u) << "object " << match.est_id;
+    size_t inside = 0;
+    for (size_t i = 0; i < g.size(); ++i) {
+      const Eigen::Vector3d p(g.positions()[3 * i], g.positions()[3 * i + 1], g.positions()[3 * i + 2]);
+      const Eigen::Vector3d local = gt->box.rotation.transpose() * (p - gt->box.centre);
+      inside += (local.array().abs() <= gt->box.half_extents.array() + 0.02).all() ? 1 : 0;
+    }
+    EXPECT_GE(inside, g.size() * 95 / 100) << "object " << match.est_id << " (GT " << gt->id << ")";
+  }
+}
+
+TEST(OfflinePipeline, SameObjectsAsTheObjectPipeline) {
+  // The object stage inside the offline pipeline is run_object_pipeline's (dqo_objects): the same
+  // keyframes (the same selector over the same ground-truth poses) give the same objects.
+  const auto source = tiny_source();
+  const TinyRun& run = ground_truth_run();
+  ObjectPipelineParams params;
+  const ObjectPipelineResult alone = run_object_pipeline(*source, params);
+  ASSERT_TRUE(alone.ok) << alone.error;
+  EXPECT_EQ(alone.keyframes, run.result.keyframes);
+  const auto ours = run.objects->objects();
+  ASSERT_EQ(alone.objects.size(), ours.size());
+  for (size_t i = 0; i < ours.size(); ++i) {
+    EXPECT_EQ(alone.objects[i].id, ours[i].id);
+    EXPECT_EQ(alone.objects[i].class_id, ours[i].class_id);
+    EXPECT_LT((alone.objects[i].quadric.centre() - ours[i].quadric.centre()).norm(), 1e-9);
+    EXPECT_LT((alone.objects[i].quadric.semi_axes() - ours[i].quadric.semi_axes()).norm(), 1e-9);
+  }
+}
+
+TEST(OfflinePipeline, MeshesMatchTheGroundTruthMeshes) {
+  const auto source = tiny_source();
+  const TinyRun& run = ground_truth_run();
+  const auto records = to_object_records(run.objects->objects());
+  std::map<uint64_t, TriangleMesh> meshes;
+  for (const auto& r : records) {
+    std::string error;
+    auto m = object_mesh(*run.mapper, r.id, ObjectMeshParams(), &error);
+    ASSERT_TRUE(m) << error;
+    EXPECT_GT(m->triangles.size(), 50u);
+    meshes[r.id] = std::move(*m);
+  }
+  const OfflineMetrics m = evaluate_offline_run(
+      run.result, records, run.mapper->keyframe_poses(), source->info(),
+      [&](uint64_t id) -> std::optional<TriangleMesh> {
+        const auto it = meshes.find(id);
+        return it == meshes.end() ? std::nullopt : std::optional<TriangleMesh>(it->second);
+      });
+  ASSERT_TRUE(m.recon);
+  ASSERT_GE(m.recon->num_with_mesh, 3);
+  // 160x120 noise-free views: every mesh within a centimetre of the truth on average, most of the
+  // truth within 5 cm (the sides no keyframe saw, like the bottoms, are the rest).
+  for (const auto& row : m.recon->rows) {
+    if (!row.has_mesh) continue;
+    EXPECT_LT(row.metrics.accuracy_cm, 1.0) << "object " << row.est_id;
+    EXPECT_GT(row.metrics.comp_ratio_5cm, 90.0) << "object " << row.est_id;
+  }
+  EXPECT_LT(m.recon->mean.completion_cm, 2.0);
+  // metrics.json names every part.
+  const std::string json = metrics_json(m);
+  for (const char* key : {"\"ate\"", "\"objects\"", "\"reconstruction\"", "\"comp_ratio_1cm\""}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+  }
+  // Unknown objects are errors, not crashes.
+  std::string error;
+  EXPECT_FALSE(object_mesh(*run.mapper, 9999, ObjectMeshParams(), &error));
+  EXPECT_NE(error.find("no such object"), std::string::npos);
+}
+
+TEST(OfflinePipeline, TrajectoryFileInAnotherFrameIsAnchoredOntoTheGroundTruth) {
+  const auto source = tiny_source();
+  // The ground truth seen from another world frame, as a tracker starting at the origin reports.
+  const SE3 T_other_world(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())),
+                          Eigen::Vector3d(1.0, -2.0, 0.5));
+  Trajectory trajectory;
+  for (int i = 0; i < source->num_frames(); ++i) {
+    const Frame f = *source->read_frame(i);
+    trajectory.emplace_back(f.timestamp, T_other_world * f.T_wc);
+  }
+  OfflineStages stages;
+  add_trajectory_stage(trajectory, PoseLookupParams(), KeyframeSelectorParams(), true, &stages);
+  const TinyRun run = run_tiny(*source, stages, LabelSource::kQuadrics);
+  ASSERT_TRUE(run.result.ok) << run.result.error;
+  ASSERT_EQ(run.result.trajectory.size(), run.result.ground_truth.size());
+  for (size_t i = 0; i < run.result.trajectory.size(); ++i) {
+    EXPECT_LT((run.result.trajectory[i].second.translation() -
+               run.result.ground_truth[i].second.translation()).norm(), 1e-9);
+  }
+  // The same objects as with the ground truth's own poses.
+  const auto a = ground_truth_run().objects->objects(), b = run.objects->objects();
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_LT((a[i].quadric.centre() - b[i].quadric.centre()).norm(), 1e-6);
+  }
+  // Quadric labels (no instance image) still give each object Gaussians.
+  for (const auto& s : run.mapper->list_objects()) {
+    if (s.known) EXPECT_GT(s.num_gaussians, 0u) << "object " << s.object.id;
+  }
+}
+
+TEST(OfflinePipeline, InstanceImageForDetections) {
+  // Two objects; detection 0 names object 7 by its gt_id, detection 1 has none and takes the ID
+  // with most pixels in its box (5); where both claim pixels the higher score wins.
+  InstanceImage gt(6, 2, 1, 0);
+  gt.data = {7, 7, 7, 5, 5, 0,  //
+             7, 7, 5, 5, 5, 0};
+  std::vector<Detection2d> d(2);
+  d[0].gt_id = 7;
+  d[0].score = 0.9f;
+  d[0].box = {-0.5, -0.5, 2.5, 1.5};
+  d[1].score = 0.5f;
+  d[1].box = {1.5, -0.5, 4.5, 1.5};
+  const InstanceImage out = instance_for_detections(gt, d);
+  const std::vector<uint16_t> expected = {1, 1, 1, 2, 2, 0,  //
+                                          1, 1, 2, 2, 2, 0};
+  EXPECT_EQ(out.data, expected);
+}
+
+}  // namespace
+}  // namespace dqo::system
