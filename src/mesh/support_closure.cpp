@@ -134,6 +134,7 @@ std::optional<FusionView> support_closure_view(const std::vector<FusionView>& ob
     if (std::abs(d) <= params.contact_distance) contact.push_back(p);
   }
   r.contact_points = static_cast<int>(contact.size());
+  r.penetrating_fraction = static_cast<double>(penetrating) / surface.size();
   if (penetrating > params.max_penetrating_fraction * surface.size()) {
     return give_up("the plane cuts through the object");
   }

@@ -37,6 +37,7 @@
 #include "dqo_map/system/offline_mapping.h"
 #ifdef DQO_FULL_PIPELINE
 #include "dqo_map/io/dataset_reader.h"
+#include "dqo_map/io/image_io.h"
 #include "dqo_map/io/mesh_io.h"
 #include "dqo_map/io/trajectory_io.h"
 #include "dqo_map/objects/params_yaml.h"
@@ -50,11 +51,11 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr char kUsage[] =
-    "usage: dqo_map_offline INPUT --out DIR [--poses gt|track|FILE] [--labels masks|quadrics]\n"
+    "usage: dqo_map_offline INPUT --out DIR [--poses gt|track|FILE] [--labels masks|quadrics|none]\n"
     "                       [--backend auto|cpu] [--scale S] [--frames N] [--every K]\n"
     "                       [--config mapping.yaml] [--tracking-config tracking.yaml]\n"
     "                       [--objects-config objects.yaml] [--max-gaussians N] [--threads T]\n"
-    "                       [--no-noise] [--no-meshes] [--quiet]\n"
+    "                       [--no-noise] [--no-meshes] [--background-mesh] [--map FILE] [--quiet]\n"
     "  INPUT              a dataset folder (own format, TUM RGB-D, Replica) or a scene YAML\n"
     "                     (rendered in memory, with its sensor noise unless --no-noise)\n"
     "  --out DIR          output folder (created)\n"
@@ -63,6 +64,7 @@ constexpr char kUsage[] =
     "  --poses FILE       a TUM trajectory matched by timestamp (e.g. dqo_track's)\n"
     "  --labels masks     pixel labels from the input's instance masks (default where it has them)\n"
     "  --labels quadrics  pixel labels from the objects' ellipsoids and detection boxes\n"
+    "  --labels none      no objects: the whole map is background (inputs without detections)\n"
     "  --backend B        auto (the GPU when one is there) or cpu\n"
     "  --scale S          image size factor (e.g. 0.5: half width and height)\n"
     "  --frames N         at most N frames (after --every)\n"
@@ -72,6 +74,7 @@ constexpr char kUsage[] =
     "  --max-gaussians N  the Gaussian budget (overrides the config's)\n"
     "  --threads T        CPU threads of the rasteriser and the renderer (default: all)\n"
     "  --no-meshes        skip the per-object meshes (and the reconstruction metrics)\n"
+    "  --background-mesh  also mesh the background (background_mesh.ply, 1 cm voxels)\n"
     "  --map FILE         no mapping: mesh and evaluate the map of a finished run (map.dqomap)\n";
 
 int usage_error(const std::string& message) {
@@ -88,7 +91,7 @@ struct Options {
   std::string input, out, poses, labels, backend, config, tracking_config, objects_config, map;
   double scale = 1.0;
   int frames = -1, every = 1, max_gaussians = -1, threads = 0;
-  bool noise = true, meshes = true, quiet = false;
+  bool noise = true, meshes = true, background_mesh = false, quiet = false;
 };
 
 bool parse_int(const char* v, int lo, int* out) {
@@ -134,6 +137,38 @@ bool write_text(const fs::path& path, const std::string& text) {
   return !ec;
 }
 
+// A distinct colour per object ID (0, the background, dark grey).
+void id_colour(uint32_t id, uint8_t* rgb) {
+  if (id == 0) {
+    rgb[0] = rgb[1] = rgb[2] = 40;
+    return;
+  }
+  uint32_t h = id * 2654435761u;
+  for (int c = 0; c < 3; ++c) {
+    rgb[c] = static_cast<uint8_t>(80 + (h & 0xff) * 175 / 255);
+    h >>= 8;
+  }
+}
+
+// The map rendered from a keyframe: colour on the left, the object ID of each pixel on the right.
+dqo::ImageRgb8 render_side_by_side(dqo::mapping::GaussianMapper& mapper,
+                                   const dqo::mapping::KeyframePose& k) {
+  dqo::gs::RenderOutput r;
+  mapper.render(k.camera, k.T_wc, &r);
+  const int w = r.width, h = r.height;
+  dqo::ImageRgb8 out(2 * w, h, 3, 0);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t p = static_cast<size_t>(y) * w + x;
+      for (int c = 0; c < 3; ++c) {
+        out.at(x, y, c) = static_cast<uint8_t>(std::clamp(std::lround(r.rgb[3 * p + c] * 255.f), 0L, 255L));
+      }
+      id_colour(r.alpha[p] > 0.5f ? r.dominant_id[p] : 0, &out.at(w + x, y, 0));
+    }
+  }
+  return out;
+}
+
 bool is_scene_yaml(const std::string& input) {
   const std::string ext = fs::path(input).extension().string();
   return fs::is_regular_file(input) && (ext == ".yaml" || ext == ".yml");
@@ -154,6 +189,8 @@ int main(int argc, char** argv) {
       o.noise = false;
     } else if (a == "--no-meshes") {
       o.meshes = false;
+    } else if (a == "--background-mesh") {
+      o.background_mesh = true;
     } else if (a == "--quiet") {
       o.quiet = true;
     } else if (a.rfind("--", 0) == 0) {
@@ -200,8 +237,8 @@ int main(int argc, char** argv) {
   }
   if (o.input.empty()) return usage_error("no INPUT given");
   if (o.out.empty()) return usage_error("--out is required");
-  if (!o.labels.empty() && o.labels != "masks" && o.labels != "quadrics") {
-    return usage_error("--labels must be masks or quadrics, not '" + o.labels + "'");
+  if (!o.labels.empty() && o.labels != "masks" && o.labels != "quadrics" && o.labels != "none") {
+    return usage_error("--labels must be masks, quadrics or none, not '" + o.labels + "'");
   }
 
   // Parameters.
@@ -250,7 +287,8 @@ int main(int argc, char** argv) {
   if (!first) return fail("frame 0: " + error);
   const bool has_gt_poses = first->has_pose;
   const bool has_masks = !first->instance.empty();
-  const bool has_detections_file = !first->detections.empty() || input_kind.rfind("scene", 0) == 0;
+  const bool has_detections_file = input_kind.rfind("scene", 0) == 0 ||
+                                   fs::is_regular_file(fs::path(o.input) / "detections.txt");
   std::string poses = o.poses.empty() ? (has_gt_poses ? "gt" : "track") : o.poses;
   std::string labels = o.labels.empty() ? (has_masks ? "masks" : "quadrics") : o.labels;
   if (poses == "gt" && !has_gt_poses) return fail(o.input + " has no ground-truth poses: use --poses track or FILE");
@@ -288,23 +326,33 @@ int main(int argc, char** argv) {
     if (!loaded) return fail(error);
     object_params = *loaded;
   }
-  if (!has_detections_file && !has_masks) {
+  if (labels != "none" && !has_detections_file && !has_masks) {
     return fail(o.input + " has neither detections (detections.txt) nor instance masks: no objects "
-                "can be found (give it a detections.txt, e.g. from a detector)");
+                "can be found (give it a detections.txt, e.g. from a detector, or map it without "
+                "objects with --labels none)");
   }
   const auto detection_source = has_detections_file ? dqo::system::DetectionSource::kDataset
                                                     : dqo::system::DetectionSource::kMasks;
-  const auto object_mapper = dqo::system::add_object_stage(
-      object_params, detection_source,
-      labels == "masks" ? dqo::system::LabelSource::kMasks : dqo::system::LabelSource::kQuadrics,
-      info, &stages);
-  const std::string objects_from =
-      detection_source == dqo::system::DetectionSource::kDataset ? "detections" : "instance masks";
+  std::shared_ptr<dqo::objects::ObjectMapper> object_mapper;
+  std::string objects_from = "nowhere";
+  if (labels != "none") {
+    object_mapper = dqo::system::add_object_stage(
+        object_params, detection_source,
+        labels == "masks" ? dqo::system::LabelSource::kMasks : dqo::system::LabelSource::kQuadrics,
+        info, &stages);
+    objects_from =
+        detection_source == dqo::system::DetectionSource::kDataset ? "detections" : "instance masks";
+  }
 #else
   if (poses != "gt") return fail("this build maps with ground-truth poses only (--poses gt)");
-  if (labels != "masks") return fail("this build labels pixels from instance masks only (--labels masks)");
-  const std::string objects_from = "ground truth";
+  if (labels == "quadrics") return fail("this build labels pixels from instance masks only (--labels masks)");
+  const std::string objects_from = labels == "none" ? "nowhere" : "ground truth";
 #endif
+  if (labels == "none") {
+    stages.objects = [](const dqo::mapping::MappingKeyframe&, const dqo::Frame&) {
+      return dqo::system::ObjectStageOutput();
+    };
+  }
 
   std::fprintf(stderr,
                "dqo_map_offline: %s (%s), %d frames of %dx%d, every %d; poses %s, labels %s, objects "
@@ -347,12 +395,13 @@ int main(int argc, char** argv) {
   if (loaded_map) {
     objects = loaded_map->objects;
     next_id = loaded_map->next_object_id;
-  } else {
+  } else if (object_mapper) {
     objects = dqo::system::to_object_records(object_mapper->objects());
     next_id = object_mapper->next_id();
   }
 #else
   for (const dqo::GtObject& g : info.objects) {
+    if (labels == "none") break;
     objects.push_back(dqo::system::object_record_from_box(g.id, g.class_id, g.class_name, g.box));
     next_id = std::max<dqo::mapping::ObjectId>(next_id, g.id + 1);
   }
@@ -391,8 +440,11 @@ int main(int argc, char** argv) {
       auto m = dqo::system::object_mesh(*mapper, r.id, dqo::system::ObjectMeshParams(), &error,
                                         &closure);
       if (!closure.closed) {
-        std::fprintf(stderr, "\ndqo_map_offline: object %llu: contact face left open: %s\n",
-                     static_cast<unsigned long long>(r.id), closure.reason);
+        std::fprintf(stderr,
+                     "\ndqo_map_offline: object %llu: contact face left open: %s (plane inliers %d, "
+                     "contact points %d, %.1f %% of the surface beyond the plane)\n",
+                     static_cast<unsigned long long>(r.id), closure.reason, closure.plane_inliers,
+                     closure.contact_points, 100 * closure.penetrating_fraction);
       }
       if (!m) {
         std::fprintf(stderr, "\ndqo_map_offline: no mesh: %s\n", error.c_str());
@@ -404,6 +456,22 @@ int main(int argc, char** argv) {
       if (!o.quiet) mesh_bar.update(++done);
     }
     mesh_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  // Renders of the map from four keyframes spread over the run: what the map looks like.
+  const auto& poses_mapped = mapper->keyframe_poses();
+  for (int k = 0; k < 4 && !poses_mapped.empty(); ++k) {
+    const auto& pose = poses_mapped[k * (poses_mapped.size() - 1) / 3];
+    const fs::path p = out / ("render_keyframe_" + std::to_string(pose.id) + ".png");
+    if (!dqo::write_png(p.string(), render_side_by_side(*mapper, pose), &error)) return fail(error);
+  }
+  if (o.background_mesh) {
+    dqo::mesh::TsdfParams tsdf;
+    auto m = dqo::system::background_mesh(*mapper, 0.01, tsdf, &error);
+    if (!m) {
+      std::fprintf(stderr, "dqo_map_offline: no background mesh: %s\n", error.c_str());
+    } else if (!dqo::save_mesh_ply((out / "background_mesh.ply").string(), *m, &error)) {
+      return fail(error);
+    }
   }
   const bool has_gt = !info.objects.empty() || !run.ground_truth.empty();
   if (has_gt) {
@@ -443,7 +511,25 @@ int main(int argc, char** argv) {
     << ",\n  \"stages\": {\n    \"read\": " << stage_json(run.timings.read_ms)
     << ",\n    \"pose\": " << stage_json(run.timings.pose_ms)
     << ",\n    \"objects\": " << stage_json(run.timings.objects_ms)
-    << ",\n    \"mapping\": " << stage_json(run.timings.mapping_ms) << "\n  }\n}\n";
+    << ",\n    \"mapping\": " << stage_json(run.timings.mapping_ms) << "\n  },\n  \"keyframes\": [";
+  // One line per mapped keyframe: what the mapping stage did with it.
+  for (size_t i = 0; i < run.reports.size(); ++i) {
+    const dqo::mapping::MappingReport& r = run.reports[i];
+    t << (i ? ",\n    " : "\n    ") << "{\"id\": " << r.keyframe_id << ", \"labelled\": "
+      << (r.labelled ? "true" : "false") << ", \"ms\": " << std::round(r.total_ms * 10) / 10
+      << ", \"added\": " << r.trainer.added_missing + r.trainer.added_error << ", \"pruned\": "
+      << r.trainer.pruned_stale + r.trainer.pruned_oversized + r.trainer.pruned_invisible +
+             r.pruned_budget
+      << ", \"pruned_budget\": " << r.pruned_budget << ", \"gaussians\": " << r.num_gaussians
+      << ", \"bytes\": " << r.bytes << ", \"objects\": {";
+    bool first_object = true;
+    for (const auto& [id, n] : r.gaussians_per_object) {
+      t << (first_object ? "" : ", ") << "\"" << id << "\": " << n;
+      first_object = false;
+    }
+    t << "}}";
+  }
+  t << "\n  ]\n}\n";
   if (!write_text(out / "timings.json", t.str())) return fail("cannot write timings.json");
 
   std::printf("%d frames, %d keyframes in %.1f s (%.2f frames/s, %.0f ms per keyframe mapping); %zu Gaussians "
