@@ -1,7 +1,5 @@
 #include "dqo_map/mapping/map_file.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -10,6 +8,8 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+
+#include "dqo_map/common/atomic_file.h"
 
 namespace dqo::mapping {
 
@@ -48,29 +48,6 @@ bool fail(std::string* error, const std::string& message) {
 }
 
 std::string errno_text(int err) { return std::strerror(err); }
-
-// See gaussian_ply.cpp: temporary sibling, fsync, rename; the temporary is removed on failure.
-bool write_file_atomically(const std::string& path, const std::string& bytes, std::string* error) {
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) return fail(error, path + ": cannot create " + tmp + ": " + errno_text(errno));
-  int err = 0;
-  if (std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size()) err = errno ? errno : EIO;
-  if (!err && std::fflush(f) != 0) err = errno;
-  // Without the fsync a power cut after the rename can leave an empty file under the final name.
-  if (!err && ::fsync(::fileno(f)) != 0) err = errno;
-  if (std::fclose(f) != 0 && !err) err = errno;
-  if (err) {
-    std::remove(tmp.c_str());
-    return fail(error, path + ": writing " + tmp + " failed: " + errno_text(err));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    err = errno;
-    std::remove(tmp.c_str());
-    return fail(error, path + ": cannot rename " + tmp + " to it: " + errno_text(err));
-  }
-  return true;
-}
 
 class ByteWriter {
  public:

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "dqo_map/common/atomic_file.h"
 #include "dqo_map/common/object_list.h"
 #include "dqo_map/common/progress.h"
 #include "dqo_map/common/statistics.h"
@@ -125,18 +126,6 @@ double peak_rss_mb() {
   return usage.ru_maxrss / 1024.0;  // kilobytes on Linux
 }
 
-bool write_text(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << text;
-    if (!out) return false;
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  return !ec;
-}
-
 // A distinct colour per object ID (0, the background, dark grey).
 void id_colour(uint32_t id, uint8_t* rgb) {
   if (id == 0) {
@@ -168,6 +157,24 @@ dqo::ImageRgb8 render_side_by_side(dqo::mapping::GaussianMapper& mapper,
   }
   return out;
 }
+
+// PNG where io/ (OpenCV) is built, binary PPM otherwise (the GPU machine).
+#ifdef DQO_FULL_PIPELINE
+constexpr char kImageExtension[] = ".png";
+bool write_image(const fs::path& path, const dqo::ImageRgb8& image, std::string* error) {
+  return dqo::write_png(path.string(), image, error);
+}
+#else
+constexpr char kImageExtension[] = ".ppm";
+bool write_image(const fs::path& path, const dqo::ImageRgb8& image, std::string* error) {
+  std::ofstream out(path, std::ios::binary);
+  out << "P6\n" << image.width << " " << image.height << "\n255\n";
+  out.write(reinterpret_cast<const char*>(image.data.data()),
+            static_cast<std::streamsize>(image.data.size()));
+  if (!out) *error = path.string() + ": cannot write";
+  return static_cast<bool>(out);
+}
+#endif
 
 bool is_scene_yaml(const std::string& input) {
   const std::string ext = fs::path(input).extension().string();
@@ -287,8 +294,6 @@ int main(int argc, char** argv) {
   if (!first) return fail("frame 0: " + error);
   const bool has_gt_poses = first->has_pose;
   const bool has_masks = !first->instance.empty();
-  const bool has_detections_file = input_kind.rfind("scene", 0) == 0 ||
-                                   fs::is_regular_file(fs::path(o.input) / "detections.txt");
   std::string poses = o.poses.empty() ? (has_gt_poses ? "gt" : "track") : o.poses;
   std::string labels = o.labels.empty() ? (has_masks ? "masks" : "quadrics") : o.labels;
   if (poses == "gt" && !has_gt_poses) return fail(o.input + " has no ground-truth poses: use --poses track or FILE");
@@ -326,6 +331,8 @@ int main(int argc, char** argv) {
     if (!loaded) return fail(error);
     object_params = *loaded;
   }
+  const bool has_detections_file = input_kind.rfind("scene", 0) == 0 ||
+                                   fs::is_regular_file(fs::path(o.input) / "detections.txt");
   if (labels != "none" && !has_detections_file && !has_masks) {
     return fail(o.input + " has neither detections (detections.txt) nor instance masks: no objects "
                 "can be found (give it a detections.txt, e.g. from a detector, or map it without "
@@ -425,6 +432,14 @@ int main(int argc, char** argv) {
     if (!dqo::gs::save_gaussians_ply(p.string(), mapper->map(), &idx, &error)) return fail(error);
   }
 
+  // Renders of the map from four keyframes spread over the run: what the map looks like.
+  const auto& poses_mapped = mapper->keyframe_poses();
+  for (int k = 0; k < 4 && !poses_mapped.empty(); ++k) {
+    const auto& pose = poses_mapped[k * (poses_mapped.size() - 1) / 3];
+    const fs::path p = out / ("render_keyframe_" + std::to_string(pose.id) + kImageExtension);
+    if (!write_image(p, render_side_by_side(*mapper, pose), &error)) return fail(error);
+  }
+
   // Meshes and metrics.
   std::string metrics_text;
   std::string table;
@@ -457,13 +472,6 @@ int main(int argc, char** argv) {
     }
     mesh_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
-  // Renders of the map from four keyframes spread over the run: what the map looks like.
-  const auto& poses_mapped = mapper->keyframe_poses();
-  for (int k = 0; k < 4 && !poses_mapped.empty(); ++k) {
-    const auto& pose = poses_mapped[k * (poses_mapped.size() - 1) / 3];
-    const fs::path p = out / ("render_keyframe_" + std::to_string(pose.id) + ".png");
-    if (!dqo::write_png(p.string(), render_side_by_side(*mapper, pose), &error)) return fail(error);
-  }
   if (o.background_mesh) {
     dqo::mesh::TsdfParams tsdf;
     auto m = dqo::system::background_mesh(*mapper, 0.01, tsdf, &error);
@@ -493,8 +501,8 @@ int main(int argc, char** argv) {
     }
   }
 #endif
-  if (!metrics_text.empty() && !write_text(out / "metrics.json", metrics_text)) {
-    return fail("cannot write metrics.json");
+  if (!metrics_text.empty() && !dqo::write_file_atomically((out / "metrics.json").string(), metrics_text, &error)) {
+    return fail(error);
   }
 
   // Timings.
@@ -530,7 +538,7 @@ int main(int argc, char** argv) {
     t << "}}";
   }
   t << "\n  ]\n}\n";
-  if (!write_text(out / "timings.json", t.str())) return fail("cannot write timings.json");
+  if (!dqo::write_file_atomically((out / "timings.json").string(), t.str(), &error)) return fail(error);
 
   std::printf("%d frames, %d keyframes in %.1f s (%.2f frames/s, %.0f ms per keyframe mapping); %zu Gaussians "
               "(%.1f MB), peak memory %.0f MB\n",

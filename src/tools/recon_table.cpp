@@ -19,6 +19,7 @@
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/io/mesh_io.h"
 #include "dqo_map/mesh/object_recon.h"
+#include "recon_options.h"
 
 namespace {
 
@@ -40,14 +41,6 @@ int usage_error(const std::string& message) {
   return 2;
 }
 
-bool parse_u64(const char* text, unsigned long long* out) {
-  if (text[0] == '-' || text[0] == '\0') return false;
-  char* end = nullptr;
-  errno = 0;
-  *out = std::strtoull(text, &end, 10);
-  return errno == 0 && end != text && *end == '\0';
-}
-
 std::string ids_text(const std::vector<uint64_t>& ids) {
   std::string s;
   for (const uint64_t id : ids) s += ' ' + std::to_string(id);
@@ -62,23 +55,11 @@ int main(int argc, char** argv) {
   dqo::mesh::ReconParams params;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    const bool has_value = i + 1 < argc;
-    unsigned long long v = 0;
     if (a == "-h" || a == "--help") {
       std::fputs(kUsage, stdout);
       return 0;
-    } else if (a == "--samples") {
-      if (!has_value || !parse_u64(argv[i + 1], &v) || v < 1 || v > 100000000) {
-        return usage_error("--samples takes an integer from 1 to 100000000");
-      }
-      params.samples = static_cast<int>(v);
-      ++i;
-    } else if (a == "--seed") {
-      if (!has_value || !parse_u64(argv[i + 1], &v)) {
-        return usage_error("--seed takes a non-negative integer");
-      }
-      params.seed = v;
-      ++i;
+    } else if (std::string bad; dqo::tools::parse_recon_option(argc, argv, &i, &params, &bad)) {
+      if (!bad.empty()) return usage_error(bad);
     } else if (!a.empty() && a[0] == '-') {
       return usage_error("unknown option " + a);
     } else if (positional < 2) {

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "../params_test_util.h"
 #include "dqo_map/mapping/params_yaml.h"
 
 namespace dqo::mapping {
@@ -65,47 +66,8 @@ TEST(MappingParamsYaml, StrictErrorsNameTheKey) {
   EXPECT_NE(parse_error("mapping:\n  threads: two\n").find("m.yaml:2"), std::string::npos);
 }
 
-// The number of initialisers an aggregate takes: when a field is added to a params struct, this
-// changes and the test below says which table to extend.
-struct AnyValue {
-  template <typename T>
-  constexpr operator T() const noexcept;  // never defined: only used in unevaluated contexts
-};
-template <typename T, typename Seq, typename = void>
-struct InitialisableWith : std::false_type {};
-template <typename T, size_t... I>
-struct InitialisableWith<T, std::index_sequence<I...>,
-                         std::void_t<decltype(T{(void(I), AnyValue{})...})>> : std::true_type {};
-template <typename T, size_t N = 0>
-constexpr size_t initialisers() {
-  if constexpr (InitialisableWith<T, std::make_index_sequence<N + 1>>::value) {
-    return initialisers<T, N + 1>();
-  } else {
-    return N;
-  }
-}
-
-// Scalar keys per section path of the written YAML.
-std::map<std::string, size_t> keys_per_section(const std::string& yaml) {
-  std::map<std::string, size_t> counts;
-  std::vector<std::string> stack;
-  std::istringstream in(yaml);
-  std::string line;
-  while (std::getline(in, line)) {
-    const size_t indent = line.find_first_not_of(' ');
-    stack.resize(indent / 2);
-    const std::string key = line.substr(indent, line.find(':') - indent);
-    std::string path;
-    for (const auto& s : stack) path += (path.empty() ? "" : ".") + s;
-    if (line.back() == ':') {
-      stack.push_back(key);
-      counts[path.empty() ? key : path + "." + key];
-    } else {
-      ++counts[path];
-    }
-  }
-  return counts;
-}
+using test::initialisers;
+using test::keys_per_section;
 
 TEST(MappingParamsYaml, CoversEveryField) {
   auto keys = keys_per_section(mapping_params_to_yaml(GaussianMapperParams{}));

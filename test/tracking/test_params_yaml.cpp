@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "../params_test_util.h"
 #include "dqo_map/tracking/params_yaml.h"
 
 namespace {
@@ -17,48 +18,8 @@ using dqo::tracking::parse_tracking_config;
 using dqo::tracking::tracking_config_to_yaml;
 using dqo::tracking::TrackingConfig;
 
-// The number of initialisers an aggregate takes (a member array counts once per element): when a
-// field is added to a params struct, this changes and the test below says which table to extend.
-struct AnyValue {
-  template <typename T>
-  constexpr operator T() const noexcept;  // never defined: only used in unevaluated contexts
-};
-template <typename T, typename Seq, typename = void>
-struct InitialisableWith : std::false_type {};
-template <typename T, size_t... I>
-struct InitialisableWith<T, std::index_sequence<I...>, std::void_t<decltype(T{(void(I), AnyValue{})...})>>
-    : std::true_type {};
-template <typename T, size_t N = 0>
-constexpr size_t initialisers() {
-  if constexpr (InitialisableWith<T, std::make_index_sequence<N + 1>>::value) {
-    return initialisers<T, N + 1>();
-  } else {
-    return N;
-  }
-}
-
-// Scalar keys per section path of tracking_config_to_yaml's block output.
-std::map<std::string, size_t> keys_per_section(const std::string& yaml) {
-  std::map<std::string, size_t> counts;
-  std::vector<std::string> stack;
-  std::istringstream in(yaml);
-  std::string line;
-  while (std::getline(in, line)) {
-    const size_t indent = line.find_first_not_of(' ');
-    const size_t depth = indent / 2;
-    stack.resize(depth);
-    const std::string key = line.substr(indent, line.find(':') - indent);
-    std::string path;
-    for (const auto& s : stack) path += (path.empty() ? "" : ".") + s;
-    if (line.back() == ':') {
-      stack.push_back(key);
-      counts[path.empty() ? key : path + "." + key];  // a section, maybe with sections only
-    } else {
-      ++counts[path];
-    }
-  }
-  return counts;
-}
+using dqo::test::initialisers;
+using dqo::test::keys_per_section;
 
 std::string parse_error(const std::string& text) {
   std::string error;
