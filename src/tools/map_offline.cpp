@@ -331,6 +331,12 @@ int main(int argc, char** argv) {
     if (!loaded) return fail(error);
     object_params = *loaded;
   }
+  if (o.scale != 1.0) {
+    // The detection filter's pixel thresholds describe boxes of the input's own resolution: a box
+    // too small to trust there is as untrustworthy scaled down with the image.
+    object_params.filter.min_area_px *= o.scale * o.scale;
+    object_params.filter.border_margin_px *= o.scale;
+  }
   const bool has_detections_file = input_kind.rfind("scene", 0) == 0 ||
                                    fs::is_regular_file(fs::path(o.input) / "detections.txt");
   if (labels != "none" && !has_detections_file && !has_masks) {
