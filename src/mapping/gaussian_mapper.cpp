@@ -108,6 +108,14 @@ bool GaussianMapper::add_keyframe_objects(KeyframeObjects objects, std::string* 
                            " detections but " + std::to_string(objects.object_ids.size()) +
                            " object IDs");
   }
+  for (const ObjectId id : objects.object_ids) {
+    // The map stores object IDs in 32 bits (GaussianMap); the object stage counts from 1 and
+    // would need four billion objects to get there, so a larger ID is a corrupt message.
+    if (id > kMaxObjectId) {
+      return fail(error, name + ": object ID " + std::to_string(id) + " is beyond " +
+                             std::to_string(kMaxObjectId));
+    }
+  }
   const auto it = waiting_.find(objects.keyframe_id);
   if (it == waiting_.end()) {
     if (seen_ids_.count(objects.keyframe_id)) {
@@ -197,6 +205,7 @@ ObjectId GaussianMapper::resolve(ObjectId id) const {
 }
 
 size_t GaussianMapper::apply_event(const MappingEvent& event) {
+  if (event.id > kMaxObjectId || event.into_id > kMaxObjectId) return 0;  // see add_keyframe_objects
   switch (event.type) {
     case MappingEvent::Type::kCreated:
       return 0;

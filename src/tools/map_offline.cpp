@@ -460,7 +460,7 @@ int main(int argc, char** argv) {
       dqo::mesh::SupportClosureInfo closure;
       auto m = dqo::system::object_mesh(*mapper, r.id, dqo::system::ObjectMeshParams(), &error,
                                         &closure);
-      if (!closure.closed) {
+      if (m && !closure.closed) {
         std::fprintf(stderr,
                      "\ndqo_map_offline: object %llu: contact face left open: %s (plane inliers %d, "
                      "contact points %d, %.1f %% of the surface beyond the plane)\n",

@@ -185,6 +185,11 @@ TEST(GaussianMapper, BadInputIsRefusedAndChangesNothing) {
   o.instance = InstanceImage(3, 3, 1, 0);
   EXPECT_FALSE(mapper.add_keyframe_objects(o, &error));
   EXPECT_NE(error.find("instance image"), std::string::npos) << error;
+  o = objects_of(1, 0);
+  o.object_ids[0] = kMaxObjectId + 1;
+  EXPECT_FALSE(mapper.add_keyframe_objects(o, &error));
+  EXPECT_NE(error.find("beyond"), std::string::npos) << error;
+  EXPECT_EQ(mapper.apply_event({MappingEvent::Type::kMerged, kMaxObjectId + 7, 1}), 0u);
   EXPECT_EQ(mapper.waiting(), 1u);  // still waiting for valid objects
   EXPECT_TRUE(mapper.add_keyframe_objects(objects_of(1, 0), &error)) << error;
   EXPECT_THROW(

@@ -38,6 +38,9 @@
 
 namespace dqo::mapping {
 
+// Object IDs the map can hold (GaussianMap keeps 32 bits per Gaussian).
+constexpr ObjectId kMaxObjectId = 0xffffffffu;
+
 enum class Backend { kAuto, kCpu, kCuda };
 bool parse_backend(const std::string& text, Backend* backend);
 const char* to_string(Backend backend);
@@ -100,7 +103,9 @@ class GaussianMapper {
   GaussianMapper& operator=(const GaussianMapper&) = delete;
 
   // Inputs. add_keyframe returns false (and *error) for images that do not match the camera, an
-  // empty image or a repeated ID; nothing changes then.
+  // empty image or a repeated ID; add_keyframe_objects for detections and IDs that disagree in
+  // number, an instance image of another size, an ID beyond kMaxObjectId, or objects of a keyframe
+  // already mapped; nothing changes then. Events with IDs beyond kMaxObjectId are ignored.
   bool add_keyframe(MappingKeyframe keyframe, std::string* error = nullptr);
   bool add_keyframe_objects(KeyframeObjects objects, std::string* error = nullptr);
   // Corrected poses: keyframes waiting, those in the trainer's window and the stored poses move.
