@@ -144,9 +144,10 @@ const GaussianTrainer::StoredKeyframe& GaussianTrainer::pick_keyframe() {
 // One backward pass with dL/d(rgb) = (1, [label = 0], [label != 0]) gives, per Gaussian, in its
 // colour gradient: its contribution to the view, Σ_p T_i α_i over the pixels it reaches, and how
 // much of it falls on background and on object pixels.
-void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderState& state) {
-  const bool check_visibility = params_.max_invisible_keyframes > 0;
-  const bool check_labels = params_.relabel_fraction > 0.f;
+void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderState& state,
+                                       bool usefulness_only) {
+  const bool check_visibility = !usefulness_only && params_.max_invisible_keyframes > 0;
+  const bool check_labels = !usefulness_only && params_.relabel_fraction > 0.f;
   const bool check_usefulness = params_.max_gaussians > 0;
   if (!check_visibility && !check_labels && !check_usefulness) return;
   const size_t n_pixels = kf.labels.data.size();
@@ -179,7 +180,9 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
     const float d = kf.depth.data[p];
     if (!valid_depth(d) || p_c.z() > d + params_.depth_error) continue;  // occluded or unknown
     const float contribution = g.colour[3 * i];
-    usefulness_[i] = contribution;
+    usefulness_[i] = std::isinf(usefulness_[i])
+                         ? contribution
+                         : std::max(contribution, params_.budget_decay * usefulness_[i]);
     if (check_visibility) {
       if (contribution < params_.min_contribution) {
         if (invisible_count_[i] < UINT16_MAX) ++invisible_count_[i];
@@ -272,7 +275,13 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
   }
 
   std::uniform_real_distribution<float> uniform(0.f, 1.f);
-  const int stride = std::max(1, params_.missing_stride);
+  // Near its budget the map takes new surface at half the density, each Gaussian twice as wide:
+  // the same area for a quarter of the Gaussians, where the full density would only push out
+  // as many elsewhere (the budget's pruning) and leave holes in what the other views saw.
+  const bool tight = params_.max_gaussians > 0 &&
+                     map_.size() >= static_cast<size_t>(0.75 * params_.max_gaussians);
+  const int stride = std::max(1, params_.missing_stride) * (tight ? 2 : 1);
+  const float error_rate = params_.error_sample_rate / (tight ? 4.f : 1.f);
   for (int v = 0; v < h; ++v) {
     for (int u = 0; u < w; ++u) {
       const size_t p = static_cast<size_t>(v) * w + u;
@@ -281,13 +290,13 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
       if (missing[p]) {
         ++report->missing_pixels;
         if (usable && u % stride == 0 && v % stride == 0) {
-          add_gaussian_at(kf, u, v, false);
+          add_gaussian_at(kf, u, v, stride, false);
           ++report->added_missing;
         }
       } else if (error[p]) {
         ++report->error_pixels;
-        if (usable && uniform(rng_) < params_.error_sample_rate) {
-          add_gaussian_at(kf, u, v, error[p] == 2 && params_.transparent_for_colour_error);
+        if (usable && uniform(rng_) < error_rate) {
+          add_gaussian_at(kf, u, v, stride, error[p] == 2 && params_.transparent_for_colour_error);
           ++report->added_error;
         }
       }
@@ -295,7 +304,8 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
   }
 }
 
-void GaussianTrainer::add_gaussian_at(const StoredKeyframe& kf, int u, int v, bool transparent) {
+void GaussianTrainer::add_gaussian_at(const StoredKeyframe& kf, int u, int v, int stride,
+                                      bool transparent) {
   const PinholeCamera& cam = kf.camera;
   const int w = cam.width, h = cam.height;
   const float d = kf.depth.data[static_cast<size_t>(v) * w + u];
@@ -346,7 +356,7 @@ void GaussianTrainer::add_gaussian_at(const StoredKeyframe& kf, int u, int v, bo
   const Eigen::Matrix3d R_w = kf.T_wc.rotation() * R_c;
 
   const double f = 0.5 * (cam.fx + cam.fy);
-  const double sigma = params_.scale_factor * std::max(1, params_.missing_stride) * d / f;
+  const double sigma = params_.scale_factor * stride * d / f;
   const double stretch = std::min(1.0 / cos_view, static_cast<double>(params_.max_stretch));
 
   GaussianInit g;
@@ -473,20 +483,34 @@ void GaussianTrainer::prune(KeyframeReport* report) {
       ++report->pruned_invisible;
     }
   }
-  // The budget: of the survivors, the least useful go until max_gaussians remain.
+  // The budget: of the survivors, the least useful go until max_gaussians remain. The Gaussians
+  // this keyframe added have not been measured yet (the review ran on the render before they
+  // were): they are measured first, on the newest view after its optimisation, or a budget
+  // smaller than one keyframe's additions would drop them in the order they were added (whole
+  // rows of the image).
   const size_t kept = n - static_cast<size_t>(std::count(remove.begin(), remove.end(), 1));
   if (params_.max_gaussians > 0 && kept > static_cast<size_t>(params_.max_gaussians)) {
+    const StoredKeyframe& newest = window_.back();
+    RenderOutput out;
+    std::unique_ptr<RenderState> state;
+    rasteriser_->forward(map_, newest.camera, newest.T_wc.inverse(), settings(0, false), &out,
+                         &state);
+    review_gaussians(newest, *state, true);
     std::vector<uint32_t> order;
     order.reserve(kept);
     for (size_t i = 0; i < n; ++i) {
       if (!remove[i]) order.push_back(static_cast<uint32_t>(i));
     }
     const size_t excess = kept - static_cast<size_t>(params_.max_gaussians);
-    // Ties (equal usefulness) break by index, oldest first, so the result is deterministic.
+    const auto& ids = map_.object_ids_per_gaussian();
+    const auto score = [&](uint32_t i) {
+      return ids[i] != 0 ? params_.budget_object_weight * usefulness_[i] : usefulness_[i];
+    };
+    // Ties (equal scores) break by index, oldest first, so the result is deterministic.
     std::nth_element(order.begin(), order.begin() + excess, order.end(),
-                     [this](uint32_t a, uint32_t b) {
-                       return usefulness_[a] < usefulness_[b] ||
-                              (usefulness_[a] == usefulness_[b] && a < b);
+                     [&score](uint32_t a, uint32_t b) {
+                       const float sa = score(a), sb = score(b);
+                       return sa < sb || (sa == sb && a < b);
                      });
     for (size_t k = 0; k < excess; ++k) remove[order[k]] = 1;
     report->pruned_budget += excess;

@@ -71,6 +71,8 @@ Section schema(GaussianMapperParams& p) {
                       {"min_contribution", &t.min_contribution, 0.0, kInf},
                       {"relabel_fraction", &t.relabel_fraction, 0.0, 1.0},
                       {"relabel_keyframes", &t.relabel_keyframes, 1, 255},
+                      {"budget_decay", &t.budget_decay, 0.0, 1.0},
+                      {"budget_object_weight", &t.budget_object_weight, 0.0, kInf},
                   },
                   {Section{"adam",
                            {

@@ -295,5 +295,53 @@ TEST(Trainer, RejectsImagesOfAnotherSize) {
   EXPECT_TRUE(trainer.map().empty());
 }
 
+// The budget: the map holds max_gaussians after each keyframe; what goes is what contributes
+// least, object Gaussians weighted up. Against the same run without a budget, the budgeted map
+// renders the views nearly as well, and weighting objects keeps more of them.
+TEST(Trainer, BudgetKeepsTheMostUsefulGaussians) {
+  const std::vector<int> frames = {0, 2, 4, 6, 8, 10, 12, 14, 16, 18};
+  auto run = [&](int budget, float object_weight, size_t* object_gaussians, double* psnr_sum) {
+    GaussianTrainer::Params params;
+    params.iterations = 20;
+    params.max_gaussians = budget;
+    params.budget_object_weight = object_weight;
+    GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+    size_t pruned = 0;
+    for (const int f : frames) {
+      const KeyframeReport r = trainer.add_keyframe(keyframe_of(f));
+      pruned += r.pruned_budget;
+      if (budget > 0) {
+        EXPECT_LE(r.num_gaussians, static_cast<size_t>(budget));
+      }
+    }
+    *object_gaussians = 0;
+    for (const uint32_t id : trainer.map().object_ids_per_gaussian()) *object_gaussians += id != 0;
+    *psnr_sum = 0.0;
+    for (const int f : frames) {
+      RenderOutput out;
+      trainer.render(tiny().camera, tiny_frame(f).T_wc, &out);
+      *psnr_sum += psnr(out, tiny_frame(f).rgb);
+    }
+    return std::make_pair(trainer.map().size(), pruned);
+  };
+  size_t objects_free = 0, objects_flat = 0, objects_weighted = 0;
+  double psnr_free = 0, psnr_flat = 0, psnr_weighted = 0;
+  const size_t unbounded = run(0, 1.f, &objects_free, &psnr_free).first;
+  const int budget = static_cast<int>(unbounded * 6 / 10);
+  const auto [size_flat, pruned_flat] = run(budget, 1.f, &objects_flat, &psnr_flat);
+  const auto [size_weighted, pruned_weighted] = run(budget, 4.f, &objects_weighted, &psnr_weighted);
+  EXPECT_EQ(size_flat, static_cast<size_t>(budget));
+  EXPECT_EQ(size_weighted, static_cast<size_t>(budget));
+  EXPECT_GT(pruned_flat, 0u);
+  EXPECT_GT(objects_weighted, objects_flat);
+  // 60 % of the Gaussians, chosen by usefulness, cost little image quality (mean over the views).
+  std::printf("unbounded %zu Gaussians (%zu of objects), %.2f dB; budget %d: %.2f dB with %zu "
+              "of objects, weighted %.2f dB with %zu\n",
+              unbounded, objects_free, psnr_free / frames.size(), budget, psnr_flat / frames.size(),
+              objects_flat, psnr_weighted / frames.size(), objects_weighted);
+  EXPECT_GT(psnr_flat / frames.size(), psnr_free / frames.size() - 2.0);
+  EXPECT_GT(psnr_weighted / frames.size(), psnr_free / frames.size() - 2.0);
+}
+
 }  // namespace
 }  // namespace dqo::gs

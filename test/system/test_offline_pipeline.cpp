@@ -213,7 +213,9 @@ TEST(OfflinePipeline, TrajectoryFileInAnotherFrameIsAnchoredOntoTheGroundTruth) 
   }
   // Quadric labels (no instance image) still give each object Gaussians.
   for (const auto& s : run.mapper->list_objects()) {
-    if (s.known) EXPECT_GT(s.num_gaussians, 0u) << "object " << s.object.id;
+    if (s.known) {
+      EXPECT_GT(s.num_gaussians, 0u) << "object " << s.object.id;
+    }
   }
 }
 

@@ -141,11 +141,17 @@ class GaussianTrainer {
     // row. 0: IDs never change after birth.
     float relabel_fraction = 0.8f;
     int relabel_keyframes = 2;
-    // The Gaussian budget: past it, after the other pruning rules, the Gaussians whose last
-    // measured contribution to a view that had them in sight (Σ over pixels of T_i α_i) is least
-    // go first. Gaussians not yet reviewed (added by this keyframe) count as most useful: they
-    // were added because the map was missing or wrong there. 0: no budget.
+    // The Gaussian budget: past it, after the other pruning rules, the least useful Gaussians go
+    // first. Usefulness is a Gaussian's contribution to the views that had it in sight (Σ over
+    // pixels of T_i α_i), the largest of them with older views' decaying by `budget_decay` per
+    // review, so that a Gaussian seen edge-on now keeps the weight it had face-on before; object
+    // Gaussians count `budget_object_weight` times theirs (the objects are what the map is for: on
+    // `room` at a quarter of its Gaussians, the objects' completion fell 8 points with weight 1,
+    // BENCHMARKS.md). Gaussians not yet reviewed (added by this keyframe) count as most useful:
+    // they were added because the map was missing or wrong there. 0: no budget.
     int max_gaussians = 0;
+    float budget_decay = 0.9f;
+    float budget_object_weight = 4.f;
 
     uint64_t seed = 1;
   };
@@ -199,11 +205,14 @@ class GaussianTrainer {
   // Training and the masks: the normalised depth (normalise_depth); render(): the surface
   // depth where surface_depth is set.
   RenderSettings settings(uint32_t ins_object, bool for_render) const;
-  void review_gaussians(const StoredKeyframe& kf, const RenderState& state);
+  // Visibility, labels and usefulness from one view; usefulness_only: the budget's measure alone.
+  void review_gaussians(const StoredKeyframe& kf, const RenderState& state,
+                        bool usefulness_only = false);
   void relabel_gaussians(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id);
   // out: the render from the keyframe; null when the map is empty (everything is missing).
   void add_gaussians(const StoredKeyframe& kf, const RenderOutput* out, KeyframeReport* report);
-  void add_gaussian_at(const StoredKeyframe& kf, int u, int v, bool transparent);
+  // `stride`: the pixel spacing the new Gaussian stands for (its in-plane size).
+  void add_gaussian_at(const StoredKeyframe& kf, int u, int v, int stride, bool transparent);
   double iterate(const StoredKeyframe& kf);
   const StoredKeyframe& pick_keyframe();
   void prune(KeyframeReport* report);
@@ -216,7 +225,7 @@ class GaussianTrainer {
   // Per Gaussian, in step with map_.
   std::vector<uint16_t> invisible_count_;
   std::vector<uint8_t> relabel_votes_;
-  std::vector<float> usefulness_;  // last measured contribution; +inf until first reviewed
+  std::vector<float> usefulness_;  // see Params::max_gaussians; +inf until first reviewed
   size_t relabelled_ = 0;
   std::deque<StoredKeyframe> window_;
   size_t keyframe_count_ = 0;

@@ -75,7 +75,7 @@ struct OfflineResult {
   double seconds = 0.0;  // wall time of the whole run
 };
 
-// done / total frames; `stage` names what the run is doing.
+// Called after every frame: frames done of the total.
 using OfflineProgress = std::function<void(int done, int total)>;
 
 // Runs every stage over the source into `mapper`. A frame that cannot be read stops the run
