@@ -275,18 +275,20 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
   }
 
   std::uniform_real_distribution<float> uniform(0.f, 1.f);
-  // Near its budget the map takes new surface at half the density, each Gaussian twice as wide:
-  // the same area for a quarter of the Gaussians, where the full density would only push out
-  // as many elsewhere (the budget's pruning) and leave holes in what the other views saw.
+  // Near its budget the map takes new background surface at half the density, each Gaussian twice
+  // as wide: the same area for a quarter of the Gaussians, where the full density would only push
+  // out as many elsewhere (the budget's pruning) and leave holes in what the other views saw.
+  // Objects keep the full density: they are what the map is for.
   const bool tight = params_.max_gaussians > 0 &&
                      map_.size() >= static_cast<size_t>(0.75 * params_.max_gaussians);
-  const int stride = std::max(1, params_.missing_stride) * (tight ? 2 : 1);
-  const float error_rate = params_.error_sample_rate / (tight ? 4.f : 1.f);
+  const int fine_stride = std::max(1, params_.missing_stride);
   for (int v = 0; v < h; ++v) {
     for (int u = 0; u < w; ++u) {
       const size_t p = static_cast<size_t>(v) * w + u;
       const float d = kf.depth.data[p];
       const bool usable = valid_depth(d) && d >= params_.min_depth && d <= params_.max_depth;
+      const bool coarse = tight && kf.labels.data[p] == 0;
+      const int stride = fine_stride * (coarse ? 2 : 1);
       if (missing[p]) {
         ++report->missing_pixels;
         if (usable && u % stride == 0 && v % stride == 0) {
@@ -295,7 +297,7 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
         }
       } else if (error[p]) {
         ++report->error_pixels;
-        if (usable && uniform(rng_) < error_rate) {
+        if (usable && uniform(rng_) < params_.error_sample_rate / (coarse ? 4.f : 1.f)) {
           add_gaussian_at(kf, u, v, stride, error[p] == 2 && params_.transparent_for_colour_error);
           ++report->added_error;
         }

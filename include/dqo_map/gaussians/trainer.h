@@ -145,13 +145,13 @@ class GaussianTrainer {
     // first. Usefulness is a Gaussian's contribution to the views that had it in sight (Σ over
     // pixels of T_i α_i), the largest of them with older views' decaying by `budget_decay` per
     // review, so that a Gaussian seen edge-on now keeps the weight it had face-on before; object
-    // Gaussians count `budget_object_weight` times theirs (the objects are what the map is for: on
-    // `room` at a quarter of its Gaussians, the objects' completion fell 8 points with weight 1,
-    // BENCHMARKS.md). Gaussians not yet reviewed (added by this keyframe) count as most useful:
+    // Gaussians count `budget_object_weight` times theirs (the objects are what the map is for, and
+    // small ones far away contribute little to any view: on `room` at a quarter of its Gaussians,
+    // the objects' completion ratio < 5 cm fell 8 points with weight 1, 5.4 with 4; BENCHMARKS.md). Gaussians not yet reviewed (added by this keyframe) count as most useful:
     // they were added because the map was missing or wrong there. 0: no budget.
     int max_gaussians = 0;
     float budget_decay = 0.9f;
-    float budget_object_weight = 4.f;
+    float budget_object_weight = 10.f;
 
     uint64_t seed = 1;
   };
