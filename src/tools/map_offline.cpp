@@ -11,8 +11,6 @@
 // The reduced build (no OpenCV, Ceres, Open3D: the GPU machine) takes scene YAMLs only, with
 // ground-truth poses and instance labels, and writes neither meshes nor metrics.
 
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,20 +20,19 @@
 #include <fstream>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "dqo_map/common/atomic_file.h"
 #include "dqo_map/common/object_list.h"
 #include "dqo_map/common/progress.h"
-#include "dqo_map/common/statistics.h"
 #include "dqo_map/gaussians/gaussian_ply.h"
 #include "dqo_map/mapping/map_file.h"
 #include "dqo_map/mapping/params_yaml.h"
 #include "dqo_map/sim/scene_frame_source.h"
 #include "dqo_map/sim/scene_loader.h"
 #include "dqo_map/system/offline_mapping.h"
+#include "dqo_map/system/offline_report.h"
 #ifdef DQO_FULL_PIPELINE
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/io/image_io.h"
@@ -103,61 +100,6 @@ bool parse_int(const char* v, int lo, int* out) {
   return true;
 }
 
-// Per-stage summary of a list of milliseconds.
-std::string stage_json(const std::vector<double>& ms) {
-  std::vector<double> sorted = ms;
-  double total = 0.0, max = 0.0;
-  for (const double m : ms) {
-    total += m;
-    max = std::max(max, m);
-  }
-  std::ostringstream o;
-  o << "{\"count\": " << ms.size() << ", \"mean_ms\": " << (ms.empty() ? 0.0 : total / ms.size())
-    << ", \"median_ms\": " << (ms.empty() ? 0.0 : dqo::median(sorted)) << ", \"max_ms\": " << max
-    << ", \"total_s\": " << total / 1000.0 << ", \"per_item_ms\": [";
-  for (size_t i = 0; i < ms.size(); ++i) o << (i ? ", " : "") << std::round(ms[i] * 100) / 100;
-  o << "]}";
-  return o.str();
-}
-
-double peak_rss_mb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;  // kilobytes on Linux
-}
-
-// A distinct colour per object ID (0, the background, dark grey).
-void id_colour(uint32_t id, uint8_t* rgb) {
-  if (id == 0) {
-    rgb[0] = rgb[1] = rgb[2] = 40;
-    return;
-  }
-  uint32_t h = id * 2654435761u;
-  for (int c = 0; c < 3; ++c) {
-    rgb[c] = static_cast<uint8_t>(80 + (h & 0xff) * 175 / 255);
-    h >>= 8;
-  }
-}
-
-// The map rendered from a keyframe: colour on the left, the object ID of each pixel on the right.
-dqo::ImageRgb8 render_side_by_side(dqo::mapping::GaussianMapper& mapper,
-                                   const dqo::mapping::KeyframePose& k) {
-  dqo::gs::RenderOutput r;
-  mapper.render(k.camera, k.T_wc, &r);
-  const int w = r.width, h = r.height;
-  dqo::ImageRgb8 out(2 * w, h, 3, 0);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const size_t p = static_cast<size_t>(y) * w + x;
-      for (int c = 0; c < 3; ++c) {
-        out.at(x, y, c) = static_cast<uint8_t>(std::clamp(std::lround(r.rgb[3 * p + c] * 255.f), 0L, 255L));
-      }
-      id_colour(r.alpha[p] > 0.5f ? r.dominant_id[p] : 0, &out.at(w + x, y, 0));
-    }
-  }
-  return out;
-}
-
 // PNG where io/ (OpenCV) is built, binary PPM otherwise (the GPU machine).
 #ifdef DQO_FULL_PIPELINE
 constexpr char kImageExtension[] = ".png";
@@ -181,10 +123,9 @@ bool is_scene_yaml(const std::string& input) {
   return fs::is_regular_file(input) && (ext == ".yaml" || ext == ".yml");
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  Options o;
+// Fills *o from the command line; returns -1 to go on, else the exit code (help, usage errors).
+int parse_options(int argc, char** argv, Options* out) {
+  Options& o = *out;
   int positional = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -247,6 +188,41 @@ int main(int argc, char** argv) {
   if (!o.labels.empty() && o.labels != "masks" && o.labels != "quadrics" && o.labels != "none") {
     return usage_error("--labels must be masks, quadrics or none, not '" + o.labels + "'");
   }
+  return -1;
+}
+
+// The frames: a scene YAML rendered in memory, or (full build) a dataset folder. nullptr and
+// *error when it cannot be opened.
+std::shared_ptr<const dqo::FrameSource> open_input(const Options& o, std::string* kind,
+                                                   std::string* error) {
+  if (is_scene_yaml(o.input)) {
+    dqo::sim::MeshLoader loader;
+#ifdef DQO_FULL_PIPELINE
+    loader = &dqo::load_mesh;
+#endif
+    auto scene = dqo::sim::load_scene(o.input, loader, error);
+    if (!scene) return nullptr;
+    *kind = std::string("scene, ") + (o.noise ? "with sensor noise" : "noise-free");
+    return std::make_shared<dqo::sim::SceneFrameSource>(std::move(*scene), o.scale, o.noise,
+                                                        o.threads);
+  }
+#ifdef DQO_FULL_PIPELINE
+  auto reader = dqo::open_dataset(o.input, error);
+  if (!reader) return nullptr;
+  *kind = reader->format() + " dataset";
+  std::shared_ptr<const dqo::FrameSource> r(std::move(reader));
+  return o.scale == 1.0 ? r : std::make_shared<dqo::ScaledFrameSource>(r, o.scale);
+#else
+  *error = o.input + ": this build reads scene YAML files only (datasets need io/: OpenCV, Open3D)";
+  return nullptr;
+#endif
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  if (const int rc = parse_options(argc, argv, &o); rc >= 0) return rc;
 
   // Parameters.
   std::string error;
@@ -263,29 +239,9 @@ int main(int argc, char** argv) {
   if (o.threads > 0) params.threads = o.threads;
 
   // Input.
-  std::shared_ptr<const dqo::FrameSource> source;
   std::string input_kind;
-  if (is_scene_yaml(o.input)) {
-    dqo::sim::MeshLoader loader;
-#ifdef DQO_FULL_PIPELINE
-    loader = &dqo::load_mesh;
-#endif
-    auto scene = dqo::sim::load_scene(o.input, loader, &error);
-    if (!scene) return fail(error);
-    source = std::make_shared<dqo::sim::SceneFrameSource>(std::move(*scene), o.scale, o.noise,
-                                                           o.threads);
-    input_kind = std::string("scene, ") + (o.noise ? "with sensor noise" : "noise-free");
-  } else {
-#ifdef DQO_FULL_PIPELINE
-    auto reader = dqo::open_dataset(o.input, &error);
-    if (!reader) return fail(error);
-    input_kind = reader->format() + " dataset";
-    std::shared_ptr<const dqo::FrameSource> r(std::move(reader));
-    source = o.scale == 1.0 ? r : std::make_shared<dqo::ScaledFrameSource>(r, o.scale);
-#else
-    return fail(o.input + ": this build reads scene YAML files only (datasets need io/: OpenCV, Open3D)");
-#endif
-  }
+  const std::shared_ptr<const dqo::FrameSource> source = open_input(o, &input_kind, &error);
+  if (!source) return fail(error);
   const dqo::DatasetInfo& info = source->info();
   if (source->num_frames() < 1) return fail(o.input + " holds no frames");
 
@@ -443,7 +399,7 @@ int main(int argc, char** argv) {
   for (int k = 0; k < 4 && !poses_mapped.empty(); ++k) {
     const auto& pose = poses_mapped[k * (poses_mapped.size() - 1) / 3];
     const fs::path p = out / ("render_keyframe_" + std::to_string(pose.id) + kImageExtension);
-    if (!write_image(p, render_side_by_side(*mapper, pose), &error)) return fail(error);
+    if (!write_image(p, dqo::system::render_colour_and_ids(*mapper, pose), &error)) return fail(error);
   }
 
   // Meshes and metrics.
@@ -512,39 +468,13 @@ int main(int argc, char** argv) {
   }
 
   // Timings.
-  const double seconds = run.seconds;
-  size_t gaussians = mapper->map().size();
-  std::ostringstream t;
-  t << "{\n  \"input\": \"" << o.input << "\",\n  \"width\": " << info.camera.width
-    << ", \"height\": " << info.camera.height << ",\n  \"frames\": " << run.frames
-    << ", \"keyframes\": " << run.keyframes << ", \"dropped_keyframes\": " << mapper->dropped()
-    << ",\n  \"total_s\": " << seconds << ", \"frames_per_second\": "
-    << (seconds > 0 ? run.frames / seconds : 0.0) << ", \"mesh_s\": " << mesh_seconds
-    << ",\n  \"peak_memory_mb\": " << peak_rss_mb() << ", \"gaussians\": " << gaussians
-    << ", \"map_mb\": " << mapper->map().bytes_used() / 1e6
-    << ",\n  \"stages\": {\n    \"read\": " << stage_json(run.timings.read_ms)
-    << ",\n    \"pose\": " << stage_json(run.timings.pose_ms)
-    << ",\n    \"objects\": " << stage_json(run.timings.objects_ms)
-    << ",\n    \"mapping\": " << stage_json(run.timings.mapping_ms) << "\n  },\n  \"keyframes\": [";
-  // One line per mapped keyframe: what the mapping stage did with it.
-  for (size_t i = 0; i < run.reports.size(); ++i) {
-    const dqo::mapping::MappingReport& r = run.reports[i];
-    t << (i ? ",\n    " : "\n    ") << "{\"id\": " << r.keyframe_id << ", \"labelled\": "
-      << (r.labelled ? "true" : "false") << ", \"ms\": " << std::round(r.total_ms * 10) / 10
-      << ", \"added\": " << r.trainer.added_missing + r.trainer.added_error << ", \"pruned\": "
-      << r.trainer.pruned_stale + r.trainer.pruned_oversized + r.trainer.pruned_invisible +
-             r.pruned_budget
-      << ", \"pruned_budget\": " << r.pruned_budget << ", \"gaussians\": " << r.num_gaussians
-      << ", \"bytes\": " << r.bytes << ", \"objects\": {";
-    bool first_object = true;
-    for (const auto& [id, n] : r.gaussians_per_object) {
-      t << (first_object ? "" : ", ") << "\"" << id << "\": " << n;
-      first_object = false;
-    }
-    t << "}}";
+  if (!dqo::write_file_atomically((out / "timings.json").string(),
+                                  dqo::system::timings_json(run, *mapper, o.input, mesh_seconds),
+                                  &error)) {
+    return fail(error);
   }
-  t << "\n  ]\n}\n";
-  if (!dqo::write_file_atomically((out / "timings.json").string(), t.str(), &error)) return fail(error);
+  const double seconds = run.seconds;
+  const size_t gaussians = mapper->map().size();
 
   std::printf("%d frames, %d keyframes in %.1f s (%.2f frames/s, %.0f ms per keyframe mapping); %zu Gaussians "
               "(%.1f MB), peak memory %.0f MB\n",
@@ -555,7 +485,7 @@ int main(int argc, char** argv) {
                                                  for (double m : run.timings.mapping_ms) s += m;
                                                  return s / run.timings.mapping_ms.size();
                                                }(),
-              gaussians, mapper->map().bytes_used() / 1e6, peak_rss_mb());
+              gaussians, mapper->map().bytes_used() / 1e6, dqo::system::peak_memory_mb());
   for (const auto& s : summaries) {
     std::printf("  object %llu %s: %zu Gaussians\n", static_cast<unsigned long long>(s.object.id),
                 s.known ? s.object.class_name.c_str() : "(not reported)", s.num_gaussians);

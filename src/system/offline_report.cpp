@@ -1,0 +1,118 @@
+#include "dqo_map/system/offline_report.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <vector>
+
+#include "dqo_map/common/statistics.h"
+
+namespace dqo::system {
+namespace {
+
+std::string quoted(const std::string& s) {
+  std::string out = "\"";
+  for (const char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    if (static_cast<unsigned char>(c) >= 0x20) out += c;
+  }
+  return out + "\"";
+}
+
+// Per-stage summary of a list of milliseconds.
+std::string stage_json(const std::vector<double>& ms) {
+  std::vector<double> sorted = ms;
+  double total = 0.0, max = 0.0;
+  for (const double m : ms) {
+    total += m;
+    max = std::max(max, m);
+  }
+  std::ostringstream o;
+  o << "{\"count\": " << ms.size() << ", \"mean_ms\": " << (ms.empty() ? 0.0 : total / ms.size())
+    << ", \"median_ms\": " << (ms.empty() ? 0.0 : median(sorted)) << ", \"max_ms\": " << max
+    << ", \"total_s\": " << total / 1000.0 << ", \"per_item_ms\": [";
+  for (size_t i = 0; i < ms.size(); ++i) o << (i ? ", " : "") << std::round(ms[i] * 100) / 100;
+  o << "]}";
+  return o.str();
+}
+
+// A distinct colour per object ID (0, the background, dark grey).
+void id_colour(uint32_t id, uint8_t* rgb) {
+  if (id == 0) {
+    rgb[0] = rgb[1] = rgb[2] = 40;
+    return;
+  }
+  uint32_t h = id * 2654435761u;  // Knuth's multiplicative hash: neighbouring IDs differ
+  for (int c = 0; c < 3; ++c) {
+    rgb[c] = static_cast<uint8_t>(80 + (h & 0xff) * 175 / 255);
+    h >>= 8;
+  }
+}
+
+}  // namespace
+
+double peak_memory_mb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // kilobytes on Linux
+}
+
+std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper& mapper,
+                         const std::string& input, double mesh_seconds) {
+  const double seconds = run.seconds;
+  const PinholeCamera* camera = mapper.keyframe_poses().empty() ? nullptr
+                                                                : &mapper.keyframe_poses()[0].camera;
+  std::ostringstream t;
+  t << "{\n  \"input\": " << quoted(input) << ",\n  \"width\": " << (camera ? camera->width : 0)
+    << ", \"height\": " << (camera ? camera->height : 0) << ",\n  \"frames\": " << run.frames
+    << ", \"keyframes\": " << run.keyframes << ", \"dropped_keyframes\": " << mapper.dropped()
+    << ",\n  \"total_s\": " << seconds << ", \"frames_per_second\": "
+    << (seconds > 0 ? run.frames / seconds : 0.0) << ", \"mesh_s\": " << mesh_seconds
+    << ",\n  \"peak_memory_mb\": " << peak_memory_mb() << ", \"gaussians\": " << mapper.map().size()
+    << ", \"map_mb\": " << mapper.map().bytes_used() / 1e6
+    << ",\n  \"stages\": {\n    \"read\": " << stage_json(run.timings.read_ms)
+    << ",\n    \"pose\": " << stage_json(run.timings.pose_ms)
+    << ",\n    \"objects\": " << stage_json(run.timings.objects_ms)
+    << ",\n    \"mapping\": " << stage_json(run.timings.mapping_ms) << "\n  },\n  \"keyframes\": [";
+  // One line per mapped keyframe: what the mapping stage did with it.
+  for (size_t i = 0; i < run.reports.size(); ++i) {
+    const mapping::MappingReport& r = run.reports[i];
+    t << (i ? ",\n    " : "\n    ") << "{\"id\": " << r.keyframe_id << ", \"labelled\": "
+      << (r.labelled ? "true" : "false") << ", \"ms\": " << std::round(r.total_ms * 10) / 10
+      << ", \"added\": " << r.trainer.added_missing + r.trainer.added_error << ", \"pruned\": "
+      << r.trainer.pruned_stale + r.trainer.pruned_oversized + r.trainer.pruned_invisible +
+             r.pruned_budget
+      << ", \"pruned_budget\": " << r.pruned_budget << ", \"gaussians\": " << r.num_gaussians
+      << ", \"bytes\": " << r.bytes << ", \"objects\": {";
+    bool first_object = true;
+    for (const auto& [id, n] : r.gaussians_per_object) {
+      t << (first_object ? "" : ", ") << "\"" << id << "\": " << n;
+      first_object = false;
+    }
+    t << "}}";
+  }
+  t << "\n  ]\n}\n";
+  return t.str();
+}
+
+ImageRgb8 render_colour_and_ids(mapping::GaussianMapper& mapper, const mapping::KeyframePose& k) {
+  gs::RenderOutput r;
+  mapper.render(k.camera, k.T_wc, &r);
+  const int w = r.width, h = r.height;
+  ImageRgb8 out(2 * w, h, 3, 0);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t p = static_cast<size_t>(y) * w + x;
+      for (int c = 0; c < 3; ++c) {
+        out.at(x, y, c) =
+            static_cast<uint8_t>(std::clamp(std::lround(r.rgb[3 * p + c] * 255.f), 0L, 255L));
+      }
+      id_colour(r.alpha[p] > 0.5f ? r.dominant_id[p] : 0, &out.at(w + x, y, 0));
+    }
+  }
+  return out;
+}
+
+}  // namespace dqo::system
