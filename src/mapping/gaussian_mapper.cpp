@@ -83,6 +83,10 @@ bool GaussianMapper::add_keyframe(MappingKeyframe keyframe, std::string* error) 
     return fail(error, name + ": depth image is not " + std::to_string(w) + "x" +
                            std::to_string(h) + " single-channel");
   }
+  if (!keyframe.T_wc.translation().allFinite() || !keyframe.T_wc.quaternion().coeffs().allFinite() ||
+      !std::isfinite(keyframe.stamp)) {
+    return fail(error, name + ": pose or stamp is not finite");
+  }
   if (!seen_ids_.insert(keyframe.id).second) {
     return fail(error, name + ": repeated keyframe ID (ignored)");
   }

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <numeric>
 #include <string>
@@ -172,6 +173,12 @@ TEST(GaussianMapper, BadInputIsRefusedAndChangesNothing) {
   EXPECT_NE(error.find("colour image"), std::string::npos) << error;
   k = keyframe(1, 0, 0.0);
   k.camera.fx = 0.0;
+  EXPECT_FALSE(mapper.add_keyframe(k, &error));
+  k = keyframe(1, 0, std::nan(""));
+  EXPECT_FALSE(mapper.add_keyframe(k, &error));
+  EXPECT_NE(error.find("not finite"), std::string::npos) << error;
+  k = keyframe(1, 0, 0.0);
+  k.T_wc = SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(NAN, 0, 0));
   EXPECT_FALSE(mapper.add_keyframe(k, &error));
   EXPECT_EQ(mapper.waiting(), 0u);
   ASSERT_TRUE(mapper.add_keyframe(keyframe(1, 0, 0.0), &error)) << error;
