@@ -39,6 +39,7 @@
 #include "dqo_map/io/mesh_io.h"
 #include "dqo_map/io/trajectory_io.h"
 #include "dqo_map/objects/params_yaml.h"
+#include "dqo_map/system/object_export.h"
 #include "dqo_map/system/object_meshes.h"
 #include "dqo_map/system/offline_metrics.h"
 #include "dqo_map/system/offline_stages.h"
@@ -388,7 +389,13 @@ int main(int argc, char** argv) {
     return fail(error);
   }
   const std::vector<dqo::mapping::ObjectSummary> summaries = mapper->list_objects();
+#ifdef DQO_FULL_PIPELINE
+  const bool exporting = o.meshes;  // export_object below writes the reported objects' Gaussians
+#else
+  const bool exporting = false;
+#endif
   for (const auto& s : summaries) {
+    if (exporting && s.known) continue;
     const std::vector<uint32_t> idx = mapper->map().indices_of(static_cast<uint32_t>(s.object.id));
     const fs::path p = out / ("object_" + std::to_string(s.object.id) + "_gaussians.ply");
     if (!dqo::gs::save_gaussians_ply(p.string(), mapper->map(), &idx, &error)) return fail(error);
@@ -407,28 +414,25 @@ int main(int argc, char** argv) {
   std::string table;
   double mesh_seconds = 0.0;
 #ifdef DQO_FULL_PIPELINE
-  std::map<uint64_t, dqo::TriangleMesh> meshes;
+  std::map<uint64_t, std::string> mesh_paths;
   if (o.meshes) {
     const auto t0 = std::chrono::steady_clock::now();
     dqo::ProgressBar mesh_bar("meshes", static_cast<int>(objects.size()));
     int done = 0;
     for (const auto& r : objects) {
-      dqo::mesh::SupportClosureInfo closure;
-      auto m = dqo::system::object_mesh(*mapper, r.id, dqo::system::ObjectMeshParams(), &error,
-                                        &closure);
-      if (m && !closure.closed) {
-        std::fprintf(stderr,
-                     "\ndqo_map_offline: object %llu: contact face left open: %s (plane inliers %d, "
-                     "contact points %d, %.1f %% of the surface beyond the plane)\n",
-                     static_cast<unsigned long long>(r.id), closure.reason, closure.plane_inliers,
-                     closure.contact_points, 100 * closure.penetrating_fraction);
-      }
-      if (!m) {
-        std::fprintf(stderr, "\ndqo_map_offline: no mesh: %s\n", error.c_str());
+      const dqo::system::ObjectExport e = dqo::system::export_object(*mapper, r.id, o.out, "");
+      if (!e.success) {
+        std::fprintf(stderr, "\ndqo_map_offline: %s\n", e.message.c_str());
       } else {
-        const fs::path p = out / ("object_" + std::to_string(r.id) + "_mesh.ply");
-        if (!dqo::save_mesh_ply(p.string(), *m, &error)) return fail(error);
-        meshes[r.id] = std::move(*m);
+        mesh_paths[r.id] = e.mesh_path;
+        if (!e.closure.closed) {
+          std::fprintf(stderr,
+                       "\ndqo_map_offline: object %llu: contact face left open: %s (plane "
+                       "inliers %d, contact points %d, %.1f %% of the surface beyond the plane)\n",
+                       static_cast<unsigned long long>(r.id), e.closure.reason,
+                       e.closure.plane_inliers, e.closure.contact_points,
+                       100 * e.closure.penetrating_fraction);
+        }
       }
       if (!o.quiet) mesh_bar.update(++done);
     }
@@ -447,10 +451,10 @@ int main(int argc, char** argv) {
   if (has_gt) {
     const auto metrics = dqo::system::evaluate_offline_run(
         run, objects, mapper->keyframe_poses(), info,
-        [&meshes](uint64_t id) -> std::optional<dqo::TriangleMesh> {
-          const auto it = meshes.find(id);
-          if (it == meshes.end()) return std::nullopt;
-          return it->second;
+        [&mesh_paths](uint64_t id) -> std::optional<dqo::TriangleMesh> {
+          const auto it = mesh_paths.find(id);
+          if (it == mesh_paths.end()) return std::nullopt;
+          return dqo::load_mesh(it->second);  // evaluated as written, like dqo_recon_table
         });
     metrics_text = dqo::system::metrics_json(metrics);
     if (metrics.recon && o.meshes) table = dqo::mesh::format_recon_table(*metrics.recon);

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <stdlib.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -17,6 +19,8 @@
 #include "dqo_map/mesh/object_recon.h"
 #include "dqo_map/sim/scene_frame_source.h"
 #include "dqo_map/sim/scene_loader.h"
+#include "dqo_map/gaussians/gaussian_ply.h"
+#include "dqo_map/system/object_export.h"
 #include "dqo_map/system/object_meshes.h"
 #include "dqo_map/system/object_pipeline.h"
 #include "dqo_map/system/offline_metrics.h"
@@ -217,6 +221,53 @@ TEST(OfflinePipeline, TrajectoryFileInAnotherFrameIsAnchoredOntoTheGroundTruth) 
       EXPECT_GT(s.num_gaussians, 0u) << "object " << s.object.id;
     }
   }
+}
+
+TEST(OfflinePipeline, ExportObjectWritesUnderTheOutputFolderOnly) {
+  const TinyRun& run = ground_truth_run();
+  const auto records = to_object_records(run.objects->objects());
+  ASSERT_FALSE(records.empty());
+  const uint64_t id = records.front().id;
+  char pattern[] = "/tmp/dqo_test_export_XXXXXX";
+  ASSERT_NE(::mkdtemp(pattern), nullptr);
+  const std::filesystem::path root = std::filesystem::path(pattern) / "out";
+  auto files = [&root] {
+    size_t n = 0;
+    std::error_code ec;
+    for (auto it = std::filesystem::recursive_directory_iterator(root.parent_path(), ec);
+         it != std::filesystem::recursive_directory_iterator(); ++it) {
+      n += it->is_regular_file() ? 1 : 0;
+    }
+    return n;
+  };
+  // Refused: an unknown ID (the message names the known ones), a sub-folder leading out.
+  ObjectExport e = export_object(*run.mapper, 9999, root.string(), "");
+  EXPECT_FALSE(e.success);
+  EXPECT_NE(e.message.find("no such object"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find(std::to_string(id)), std::string::npos) << e.message;
+  e = export_object(*run.mapper, id, root.string(), "../escape");
+  EXPECT_FALSE(e.success);
+  EXPECT_NE(e.message.find("outside the output folder"), std::string::npos) << e.message;
+  e = export_object(*run.mapper, id, root.string(), "/tmp");
+  EXPECT_FALSE(e.success);
+  EXPECT_EQ(files(), 0u) << "nothing written";
+  // Written: the object's Gaussians (read back equal to the map's) and its mesh, in the sub-folder.
+  e = export_object(*run.mapper, id, root.string(), "extracted/run1");
+  ASSERT_TRUE(e.success) << e.message;
+  EXPECT_EQ(std::filesystem::path(e.gaussians_path).parent_path(),
+            std::filesystem::weakly_canonical(root / "extracted/run1"));
+  std::string error;
+  const auto back = gs::load_gaussians_ply(e.gaussians_path, &error);
+  ASSERT_TRUE(back) << error;
+  const gs::GaussianMap own = run.mapper->object_gaussians(id);
+  ASSERT_EQ(back->size(), own.size());
+  EXPECT_EQ(back->positions(), own.positions());
+  EXPECT_EQ(back->object_ids_per_gaussian(), own.object_ids_per_gaussian());
+  const auto mesh = load_mesh(e.mesh_path, &error);
+  ASSERT_TRUE(mesh) << error;
+  EXPECT_GT(mesh->triangles.size(), 50u);
+  EXPECT_EQ(files(), 2u);
+  std::filesystem::remove_all(pattern);
 }
 
 TEST(OfflinePipeline, InstanceImageForDetections) {
