@@ -1,0 +1,120 @@
+#include "dqo_map/mapping/mapping_worker.h"
+
+#include <optional>
+#include <utility>
+
+namespace dqo::mapping {
+
+MappingWorker::MappingWorker(const GaussianMapperParams& params)
+    : mapper_(params), thread_([this] { run(); }) {}
+
+MappingWorker::~MappingWorker() {
+  {
+    std::lock_guard<std::mutex> lock(inbox_mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void MappingWorker::push(Input input) {
+  {
+    std::lock_guard<std::mutex> lock(inbox_mutex_);
+    inbox_.push_back(std::move(input));
+  }
+  wake_.notify_one();
+}
+
+void MappingWorker::add_keyframe(MappingKeyframe keyframe) { push(std::move(keyframe)); }
+void MappingWorker::add_keyframe_objects(KeyframeObjects objects) { push(std::move(objects)); }
+void MappingWorker::apply_event(const MappingEvent& event) { push(event); }
+void MappingWorker::set_objects(std::vector<ObjectRecord> objects) { push(std::move(objects)); }
+void MappingWorker::set_keyframe_poses(std::map<KeyframeId, SE3> T_wc_by_id) {
+  push(std::move(T_wc_by_id));
+}
+
+void MappingWorker::hand_over(Input& input, std::vector<std::string>* errors) {
+  std::string error;
+  if (auto* k = std::get_if<MappingKeyframe>(&input)) {
+    if (!mapper_.add_keyframe(std::move(*k), &error)) errors->push_back(error);
+  } else if (auto* o = std::get_if<KeyframeObjects>(&input)) {
+    if (!mapper_.add_keyframe_objects(std::move(*o), &error)) errors->push_back(error);
+  } else if (auto* e = std::get_if<MappingEvent>(&input)) {
+    mapper_.apply_event(*e);
+  } else if (auto* r = std::get_if<std::vector<ObjectRecord>>(&input)) {
+    mapper_.set_objects(std::move(*r));
+  } else if (auto* p = std::get_if<std::map<KeyframeId, SE3>>(&input)) {
+    mapper_.set_keyframe_poses(*p);
+  }
+}
+
+void MappingWorker::run() {
+  for (;;) {
+    std::deque<Input> batch;
+    bool flush = false;
+    {
+      std::unique_lock<std::mutex> lock(inbox_mutex_);
+      wake_.wait(lock, [this] { return stop_ || !inbox_.empty() || flush_ || more_ready_; });
+      if (stop_) return;
+      batch.swap(inbox_);
+      flush = flush_;
+      flush_ = false;
+      busy_ = true;
+    }
+    // The inputs in arrival order, then one mapping step: queries (with_mapper) wait for at most
+    // one step, and new inputs reach the mapper before the next.
+    std::vector<std::string> errors;
+    std::optional<MappingReport> report;
+    bool more = false;
+    {
+      std::lock_guard<std::mutex> lock(mapper_mutex_);
+      for (Input& input : batch) hand_over(input, &errors);
+      if (flush) mapper_.flush();
+      report = mapper_.process_next();
+      more = mapper_.ready() > 0;
+    }
+    {
+      std::lock_guard<std::mutex> lock(inbox_mutex_);
+      errors_.insert(errors_.end(), errors.begin(), errors.end());
+      if (report) {
+        reports_.push_back(std::move(*report));
+        ++mapped_;
+      }
+      more_ready_ = more;
+      busy_ = false;
+    }
+    idle_.notify_all();
+  }
+}
+
+void MappingWorker::wait_until_idle(bool flush) {
+  std::unique_lock<std::mutex> lock(inbox_mutex_);
+  if (flush) {
+    flush_ = true;
+    wake_.notify_one();
+  }
+  idle_.wait(lock, [this] {
+    return stop_ || (inbox_.empty() && !busy_ && !more_ready_ && !flush_);
+  });
+}
+
+std::vector<MappingReport> MappingWorker::take_reports() {
+  std::lock_guard<std::mutex> lock(inbox_mutex_);
+  std::vector<MappingReport> out;
+  out.swap(reports_);
+  return out;
+}
+
+std::vector<std::string> MappingWorker::take_errors() {
+  std::lock_guard<std::mutex> lock(inbox_mutex_);
+  std::vector<std::string> out;
+  out.swap(errors_);
+  return out;
+}
+
+size_t MappingWorker::inbox_size() const {
+  std::lock_guard<std::mutex> lock(inbox_mutex_);
+  return inbox_.size();
+}
+
+}  // namespace dqo::mapping
