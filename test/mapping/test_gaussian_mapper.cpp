@@ -12,58 +12,15 @@
 #include <string>
 
 #include "dqo_map/mapping/gaussian_mapper.h"
-#include "dqo_map/sim/renderer.h"
-#include "dqo_map/sim/scene_loader.h"
-#include "dqo_map/system/offline_mapping.h"
+#include "tiny_keyframes.h"
 
 namespace dqo::mapping {
 namespace {
 
-const sim::Scene& tiny() {
-  static const sim::Scene scene = [] {
-    std::string error;
-    auto s = sim::load_scene(std::string(DQO_SOURCE_DIR) + "/config/scenes/tiny.yaml", {}, &error);
-    EXPECT_TRUE(s.has_value()) << error;
-    sim::Scene out = s ? *s : sim::Scene();
-    out.camera = scale_camera(out.camera, 0.5);  // 80x60: fast, still five objects in view
-    return out;
-  }();
-  return scene;
-}
-
-const Frame& frame(int index) {
-  static const sim::Renderer renderer(tiny(), 2);
-  static std::map<int, Frame> frames;
-  auto it = frames.find(index);
-  if (it == frames.end()) it = frames.emplace(index, renderer.render(index, false)).first;
-  return it->second;
-}
-
-DatasetInfo info() {
-  static const DatasetInfo i = sim::Renderer(tiny(), 1).info();
-  return i;
-}
-
-MappingKeyframe keyframe(KeyframeId id, int index, double stamp) {
-  const Frame& f = frame(index);
-  MappingKeyframe k;
-  k.id = id;
-  k.stamp = stamp;
-  k.camera = tiny().camera;
-  k.T_wc = f.T_wc;
-  k.rgb = f.rgb;
-  k.depth = f.depth;
-  return k;
-}
-
-// The ground-truth object stage's answer for a frame (one detection per instance).
-system::ObjectStageOutput truth(int index) { return system::ground_truth_objects(frame(index), info()); }
-
-KeyframeObjects objects_of(KeyframeId id, int index) {
-  KeyframeObjects o = truth(index).keyframe_objects;
-  o.keyframe_id = id;
-  return o;
-}
+using testing::frame;
+using testing::keyframe;
+using testing::objects_of;
+using testing::truth;
 
 GaussianMapperParams fast_params() {
   GaussianMapperParams p;

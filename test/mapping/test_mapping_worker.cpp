@@ -9,52 +9,16 @@
 #include <thread>
 
 #include "dqo_map/mapping/mapping_worker.h"
-#include "dqo_map/sim/renderer.h"
-#include "dqo_map/sim/scene_loader.h"
-#include "dqo_map/system/offline_mapping.h"
+#include "tiny_keyframes.h"
 
 namespace dqo::mapping {
 namespace {
 
-struct Tiny {
-  sim::Scene scene;
-  DatasetInfo info;
-  std::vector<Frame> frames;
-};
-
-const Tiny& tiny() {
-  static const Tiny t = [] {
-    Tiny out;
-    std::string error;
-    auto s = sim::load_scene(std::string(DQO_SOURCE_DIR) + "/config/scenes/tiny.yaml", {}, &error);
-    EXPECT_TRUE(s.has_value()) << error;
-    out.scene = s ? *s : sim::Scene();
-    out.scene.camera = scale_camera(out.scene.camera, 0.5);
-    const sim::Renderer renderer(out.scene, 2);
-    out.info = renderer.info();
-    for (int i = 0; i < 6; ++i) out.frames.push_back(renderer.render(3 * i, false));
-    return out;
-  }();
-  return t;
-}
-
+// Keyframe `id` is frame 3 (id − 1) of `tiny`, 0.1 s apart.
 MappingKeyframe keyframe(KeyframeId id) {
-  const Frame& f = tiny().frames[id - 1];
-  MappingKeyframe k;
-  k.id = id;
-  k.stamp = 0.1 * static_cast<double>(id);
-  k.camera = tiny().scene.camera;
-  k.T_wc = f.T_wc;
-  k.rgb = f.rgb;
-  k.depth = f.depth;
-  return k;
+  return testing::keyframe(id, 3 * static_cast<int>(id - 1), 0.1 * static_cast<double>(id));
 }
-
-KeyframeObjects objects(KeyframeId id) {
-  KeyframeObjects o = system::ground_truth_objects(tiny().frames[id - 1], tiny().info).keyframe_objects;
-  o.keyframe_id = id;
-  return o;
-}
+KeyframeObjects objects(KeyframeId id) { return testing::objects_of(id, 3 * static_cast<int>(id - 1)); }
 
 GaussianMapperParams params() {
   GaussianMapperParams p;
@@ -66,7 +30,7 @@ GaussianMapperParams params() {
 TEST(MappingWorker, SameMapAsTheMapperFedDirectly) {
   GaussianMapper direct(params());
   MappingWorker worker(params());
-  const auto records = system::ground_truth_objects(tiny().frames[0], tiny().info).objects;
+  const auto records = testing::truth(0).objects;
   direct.set_objects(records);
   worker.set_objects(records);
   for (KeyframeId id = 1; id <= 4; ++id) {
@@ -91,7 +55,7 @@ TEST(MappingWorker, SameMapAsTheMapperFedDirectly) {
 
 TEST(MappingWorker, InputsFromSeveralThreadsQueriesMeanwhile) {
   MappingWorker worker(params());
-  worker.set_objects(system::ground_truth_objects(tiny().frames[0], tiny().info).objects);
+  worker.set_objects(testing::truth(0).objects);
   // Keyframes and their objects from two threads, in either order per keyframe; a third thread
   // queries the map while it is being built.
   std::thread keyframes([&] {
