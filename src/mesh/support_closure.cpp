@@ -177,6 +177,39 @@ std::optional<FusionView> support_closure_view(const std::vector<FusionView>& ob
   }
   r.footprint_cells = static_cast<int>(std::count(mask.begin(), mask.end(), 1));
   if (r.footprint_cells == 0) return give_up("empty footprint");
+  // The contacts must outline the footprint: a cup's or a book's contact runs along most of the
+  // hull's boundary (a side never seen leaves a gap), a table's or a chair's legs touch it at a few
+  // corners only, and closing their hull would lay a floor patch under them.
+  {
+    std::vector<uint8_t> near_contact(mask.size(), 0);
+    const int k = params.rim_cells;
+    for (const Eigen::Vector2d& q : planar) {
+      const int cx = static_cast<int>(std::lround(q.x() / cell)) + pad;
+      const int cy = static_cast<int>(std::lround(q.y() / cell)) + pad;
+      for (int dy = -k; dy <= k; ++dy) {
+        for (int dx = -k; dx <= k; ++dx) {
+          const int x = cx + dx, y = cy + dy;
+          if (x >= 0 && y >= 0 && x < w && y < h) near_contact[static_cast<size_t>(y) * w + x] = 1;
+        }
+      }
+    }
+    int boundary = 0, covered = 0;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const size_t i = static_cast<size_t>(y) * w + x;
+        if (!mask[i]) continue;
+        const bool edge = x == 0 || y == 0 || x + 1 == w || y + 1 == h || !mask[i - 1] ||
+                          !mask[i + 1] || !mask[i - w] || !mask[i + w];
+        if (!edge) continue;
+        ++boundary;
+        covered += near_contact[i];
+      }
+    }
+    r.rim_coverage = boundary > 0 ? static_cast<double>(covered) / boundary : 0.0;
+    if (r.rim_coverage < params.min_rim_coverage) {
+      return give_up("the contacts do not outline a footprint (legs?)");
+    }
+  }
 
   // The virtual camera: under the plane, optical axis along the normal, one pixel per cell at the
   // plane (fx = distance / cell), so every footprint pixel sees the plane at depth `distance`.

@@ -102,6 +102,26 @@ TEST(SupportClosure, TiltedPlanesWork) {
   EXPECT_NEAR(info.normal.dot(T.rotation().col(2)), 1.0, 1e-6);
 }
 
+TEST(SupportClosure, LegsOnTheFloorAreNotClosed) {
+  // A table's view from above: its top at 0.7 m and, seen past it, four leg ends on the floor at
+  // the corners (small squares 5 mm up). The hull of the contacts would be the table's whole
+  // footprint; the contacts touch its boundary at the corners only.
+  FusionView v = top_view(0.3, 0.7);
+  const double d_leg = 1.0 - 0.005;
+  for (int y = 0; y < v.camera.height; ++y) {
+    for (int x = 0; x < v.camera.width; ++x) {
+      const Eigen::Vector3d p = v.T_wc * v.camera.back_project(x, y, d_leg);
+      const bool leg = std::abs(std::abs(p.x()) - 0.2) < 0.02 && std::abs(std::abs(p.y()) - 0.2) < 0.02;
+      if (leg) v.depth[y * v.camera.width + x] = static_cast<float>(d_leg);
+    }
+  }
+  SupportClosureInfo info;
+  EXPECT_FALSE(support_closure_view({v}, ring(0.22, 0.0), box(0.22, 0.7), 0.005,
+                                    SupportClosureParams(), &info));
+  EXPECT_STREQ(info.reason, "the contacts do not outline a footprint (legs?)");
+  EXPECT_LT(info.rim_coverage, 0.5);
+}
+
 TEST(SupportClosure, NoFaceIsClosedWithoutASupport) {
   SupportClosureInfo info;
   // The object floats 10 cm above the plane.

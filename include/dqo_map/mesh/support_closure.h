@@ -41,6 +41,10 @@ struct SupportClosureParams {
   // object) and tracked poses (the rim doubled) put up to ~10 % there on `tabletop`.
   double max_penetration = 0.01;
   double max_penetrating_fraction = 0.15;
+  // Share of the footprint's boundary (the hull of the contacts) that must lie within rim_cells
+  // cells of a contact: legs touch the floor at a few points of their hull's boundary.
+  double min_rim_coverage = 0.5;
+  int rim_cells = 3;
   double camera_distance = 1.0;  // metres: the virtual camera's distance under the plane
   uint64_t seed = 1;
 };
@@ -53,6 +57,7 @@ struct SupportClosureInfo {
   int contact_points = 0;
   int footprint_cells = 0;
   double penetrating_fraction = 0.0;  // of the object's surface beyond max_penetration
+  double rim_coverage = 0.0;          // of the footprint's boundary near a contact
   const char* reason = "";  // why not closed
 };
 
