@@ -27,6 +27,30 @@ size_t capacity_bytes(const std::vector<V>& v) {
 
 }  // namespace
 
+GaussianInit GaussianMap::gaussian(size_t i) const {
+  GaussianInit g;
+  g.position = Eigen::Map<const Eigen::Vector3f>(&position_[3 * i]);
+  g.log_scale = Eigen::Map<const Eigen::Vector3f>(&log_scale_[3 * i]);
+  g.rotation = Eigen::Map<const Eigen::Vector4f>(&rotation_[4 * i]);
+  g.colour = Eigen::Map<const Eigen::Vector3f>(&colour_[3 * i]);
+  g.opacity = opacity_[i];
+  g.object_id = object_id_[i];
+  g.type = static_cast<GaussianType>(type_[i]);
+  g.birth_keyframe = birth_keyframe_[i];
+  return g;
+}
+
+GaussianMap GaussianMap::subset(const std::vector<uint32_t>& indices) const {
+  GaussianMap out;
+  out.reserve(indices.size());
+  for (const uint32_t i : indices) {
+    const size_t j = out.add(gaussian(i));
+    out.confidence_[j] = confidence_[i];
+    out.stable_[j] = stable_[i];
+  }
+  return out;
+}
+
 size_t GaussianMap::add(const GaussianInit& g) {
   const size_t index = size();
   position_.insert(position_.end(), g.position.data(), g.position.data() + 3);

@@ -218,15 +218,8 @@ void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
   for (size_t i = 0; i < which.size(); ++i) {
     if (!which[i]) continue;
     usefulness.push_back(usefulness_[i]);
-    GaussianInit g;
-    g.position = Eigen::Map<const Eigen::Vector3f>(&map_.positions()[3 * i]);
-    g.log_scale = Eigen::Map<const Eigen::Vector3f>(&map_.log_scales()[3 * i]);
-    g.rotation = Eigen::Map<const Eigen::Vector4f>(&map_.rotations()[4 * i]);
-    g.colour = Eigen::Map<const Eigen::Vector3f>(&map_.colours()[3 * i]);
-    g.opacity = map_.opacities()[i];
+    GaussianInit g = map_.gaussian(i);
     g.object_id = new_id[i];
-    g.type = static_cast<GaussianType>(map_.types()[i]);
-    g.birth_keyframe = map_.birth_keyframes()[i];
     moved.push_back(g);
     confidence.push_back(map_.confidences()[i]);
     stable.push_back(map_.stable()[i]);

@@ -6,14 +6,11 @@
 #include <stdexcept>
 #include <utility>
 
+#include "dqo_map/common/stopwatch.h"
 #include "dqo_map/mapping/params_yaml.h"
 
 namespace dqo::mapping {
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 bool fail(std::string* error, const std::string& message) {
   if (error) *error = message;
@@ -310,7 +307,6 @@ std::optional<MappingReport> GaussianMapper::process_next() {
   keyframe_objects_[pose.id] = std::move(seen);
 
   const gs::GaussianMap& map = trainer_->map();
-  report.pruned_budget = report.trainer.pruned_budget;
   report.num_gaussians = map.size();
   report.bytes = map.bytes_used();
   for (const uint32_t id : map.object_ids_per_gaussian()) ++report.gaussians_per_object[id];
@@ -344,24 +340,7 @@ const ObjectRecord* GaussianMapper::find_object(ObjectId id) const {
 
 gs::GaussianMap GaussianMapper::object_gaussians(ObjectId id) const {
   const gs::GaussianMap& map = trainer_->map();
-  gs::GaussianMap out;
-  const std::vector<uint32_t> indices = map.indices_of(static_cast<uint32_t>(id));
-  out.reserve(indices.size());
-  for (const uint32_t i : indices) {
-    gs::GaussianInit g;
-    g.position = Eigen::Map<const Eigen::Vector3f>(&map.positions()[3 * i]);
-    g.log_scale = Eigen::Map<const Eigen::Vector3f>(&map.log_scales()[3 * i]);
-    g.rotation = Eigen::Map<const Eigen::Vector4f>(&map.rotations()[4 * i]);
-    g.colour = Eigen::Map<const Eigen::Vector3f>(&map.colours()[3 * i]);
-    g.opacity = map.opacities()[i];
-    g.object_id = map.object_ids_per_gaussian()[i];
-    g.type = static_cast<gs::GaussianType>(map.types()[i]);
-    g.birth_keyframe = map.birth_keyframes()[i];
-    const size_t j = out.add(g);
-    out.confidences()[j] = map.confidences()[i];
-    out.stable()[j] = map.stable()[i];
-  }
-  return out;
+  return map.subset(map.indices_of(static_cast<uint32_t>(id)));
 }
 
 void GaussianMapper::render(const PinholeCamera& camera, const SE3& T_wc, gs::RenderOutput* out) {

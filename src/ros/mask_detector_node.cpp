@@ -32,7 +32,7 @@ class MaskDetectorNode {
   bool throttled(const std::string& kind, double period = 5.0);
 
   ros::NodeHandle nh_, pnh_;
-  objects::MaskDetectionParams params_;
+  MaskDetectionParams params_;
   bool attach_instance_ = true;
   bool ok_ = false;
   ros::Subscriber sub_;
@@ -84,13 +84,13 @@ MaskDetectorNode::MaskDetectorNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh
 }
 
 void MaskDetectorNode::on_mask(const sensor_msgs::ImageConstPtr& msg) {
-  objects::LabelImage labels;
+  LabelImage labels;
   std::string error;
   if (!from_label_msg(*msg, &labels, &error)) {
     if (!throttled("encoding")) ROS_ERROR("mask_detector: %s: mask skipped", error.c_str());
     return;
   }
-  const objects::MaskDetections r = objects::detections_from_mask(labels, params_);
+  const MaskDetections r = detections_from_mask(labels, params_);
   if (!params_.skip_unknown && !params_.classes.empty()) {
     for (size_t k = 0; k < r.labels.size(); ++k) {
       // Once per label: a table that misses an instance is worth one line, not one per frame.

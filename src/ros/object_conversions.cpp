@@ -58,7 +58,7 @@ std::vector<Detection2d> from_detection_array_msg(const dqo_map::DetectionArray&
   return out;
 }
 
-bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, std::string* error) {
+bool from_label_msg(const sensor_msgs::Image& msg, LabelImage* labels, std::string* error) {
   namespace enc = sensor_msgs::image_encodings;
   int bytes = 0;
   bool colour = false, bgr = false;
@@ -73,7 +73,7 @@ bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, 
     return false;
   }
   if (!check_image_layout(msg, bytes, "instance", error)) return false;
-  *labels = objects::LabelImage(static_cast<int>(msg.width), static_cast<int>(msg.height), 1, 0);
+  *labels = LabelImage(static_cast<int>(msg.width), static_cast<int>(msg.height), 1, 0);
   uint32_t* out = labels->data.data();
   for (uint32_t y = 0; y < msg.height; ++y) {
     const uint8_t* in = msg.data.data() + static_cast<size_t>(y) * msg.step;
@@ -83,7 +83,7 @@ bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, 
       } else if (bytes == 2) {
         *out = msg.is_bigendian ? (uint32_t(in[0]) << 8 | in[1]) : (uint32_t(in[1]) << 8 | in[0]);
       } else if (colour) {
-        *out = bgr ? objects::pack_rgb(in[2], in[1], in[0]) : objects::pack_rgb(in[0], in[1], in[2]);
+        *out = bgr ? pack_rgb(in[2], in[1], in[0]) : pack_rgb(in[0], in[1], in[2]);
       }
     }
   }
@@ -129,7 +129,7 @@ bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArr
   }
   *instance = InstanceImage();
   if (detections.instance.width == 0 || detections.instance.height == 0) return true;
-  objects::LabelImage labels;
+  LabelImage labels;
   if (!from_label_msg(detections.instance, &labels, &why)) {
     warnings->push_back(why + ": detections used without their instance image");
     return true;

@@ -15,7 +15,7 @@
 #include <std_msgs/Header.h>
 #include <visualization_msgs/MarkerArray.h>
 
-#include "dqo_map/objects/mask_detections.h"
+#include "dqo_map/common/mask_detections.h"
 #include "dqo_map/objects/object_types.h"
 #include "dqo_map/tracking/undistortion.h"
 
@@ -31,9 +31,9 @@ dqo_map::ObjectEvent to_event_msg(const objects::ObjectEvent& event, const std_m
 std::vector<Detection2d> from_detection_array_msg(const dqo_map::DetectionArray& msg);
 
 // An instance / label image message as integer labels: mono8 / 8UC1 and mono16 / 16UC1 give the
-// value, rgb8 / bgr8 the colour packed as objects::pack_rgb(r, g, b). False and *error (naming the
+// value, rgb8 / bgr8 the colour packed as pack_rgb(r, g, b). False and *error (naming the
 // encoding and those accepted) otherwise, or when the size fields disagree with the data.
-bool from_label_msg(const sensor_msgs::Image& msg, objects::LabelImage* labels, std::string* error);
+bool from_label_msg(const sensor_msgs::Image& msg, LabelImage* labels, std::string* error);
 sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header);
 
 // The mapper's input from a KeyFrame and its DetectionArray: the rectified pinhole camera from the

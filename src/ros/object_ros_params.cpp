@@ -28,7 +28,7 @@ bool read_int(XmlRpc::XmlRpcValue& v, int min, int max, int* out) {
 
 }  // namespace
 
-bool read_mask_classes(const ros::NodeHandle& private_nh, objects::MaskDetectionParams* params,
+bool read_mask_classes(const ros::NodeHandle& private_nh, MaskDetectionParams* params,
                        std::string* error) {
   XmlRpc::XmlRpcValue table;
   if (!private_nh.getParam("classes", table)) return true;  // no table: every instance gets the default
@@ -71,13 +71,13 @@ bool read_mask_classes(const ros::NodeHandle& private_nh, objects::MaskDetection
         *error = entry + ".colour must be [r, g, b] with integers in [0, 255]";
         return false;
       }
-      label = objects::pack_rgb(rgb[0], rgb[1], rgb[2]);
+      label = pack_rgb(rgb[0], rgb[1], rgb[2]);
       if (label == 0) {
         *error = entry + ".colour [0, 0, 0] is black, which means no instance";
         return false;
       }
     }
-    objects::MaskClass cls;
+    MaskClass cls;
     if (!e.hasMember("class_id") || !read_int(e["class_id"], 0, 1 << 30, &cls.class_id)) {
       *error = entry + ".class_id must be a non-negative integer";
       return false;

@@ -8,7 +8,7 @@
 
 #include <ros/node_handle.h>
 
-#include "dqo_map/objects/mask_detections.h"
+#include "dqo_map/common/mask_detections.h"
 #include "dqo_map/objects/object_params.h"
 
 namespace dqo::ros_bridge {
@@ -20,7 +20,7 @@ std::optional<objects::ObjectMapperParams> read_object_params(const ros::NodeHan
 // mask_detector's class table, ~classes: a list of {value: N, class_id: I, class_name: S} (mono8 /
 // mono16 masks) or {colour: [r, g, b], class_id: I, class_name: S} (colour-coded masks). False
 // and *error naming the entry when an entry is malformed or a label is given twice.
-bool read_mask_classes(const ros::NodeHandle& private_nh, objects::MaskDetectionParams* params,
+bool read_mask_classes(const ros::NodeHandle& private_nh, MaskDetectionParams* params,
                        std::string* error);
 
 }  // namespace dqo::ros_bridge

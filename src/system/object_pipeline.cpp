@@ -5,6 +5,8 @@
 #include <future>
 #include <utility>
 
+#include "trajectory_anchor.h"
+
 namespace dqo::system {
 
 ObjectPipelineResult run_object_pipeline(const FrameSource& reader, const ObjectPipelineParams& params,
@@ -30,7 +32,7 @@ ObjectPipelineResult run_object_pipeline(const FrameSource& reader, const Object
       return std::make_pair(std::move(frame), e);
     });
   };
-  SE3 T_anchor;  // trajectory frame -> ground-truth frame
+  TrajectoryAnchor anchor(params.anchor_to_ground_truth);
   std::future<std::pair<std::optional<Frame>, std::string>> next;
   if (total > 0) next = read(0);
   for (int i = 0; i < total; ++i) {
@@ -43,18 +45,8 @@ ObjectPipelineResult run_object_pipeline(const FrameSource& reader, const Object
     ++result.frames;
     std::optional<SE3> T_wc;
     if (trajectory) {
-      T_wc = pose_at(sorted, frame->timestamp, params.pose_lookup);
-      if (T_wc && params.anchor_to_ground_truth && !result.anchored && frame->has_pose) {
-        T_anchor = frame->T_wc * T_wc->inverse();
-        result.anchored = true;
-      }
-      if (T_wc && params.anchor_to_ground_truth) {
-        if (!result.anchored) {
-          T_wc.reset();  // before the anchor is known the pose means nothing in the GT frame
-        } else {
-          T_wc = T_anchor * *T_wc;
-        }
-      }
+      T_wc = anchor.apply(*frame, pose_at(sorted, frame->timestamp, params.pose_lookup));
+      result.anchored = anchor.anchored();
     } else if (frame->has_pose) {
       T_wc = frame->T_wc;
     }

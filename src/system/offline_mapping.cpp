@@ -3,17 +3,12 @@
 #include <algorithm>
 #include <chrono>
 #include <future>
-#include <limits>
+#include <vector>
+
+#include "dqo_map/common/mask_detections.h"
+#include "dqo_map/common/stopwatch.h"
 
 namespace dqo::system {
-namespace {
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
-
 mapping::ObjectRecord object_record_from_box(uint64_t id, int class_id,
                                              const std::string& class_name,
                                              const OrientedBox& box) {
@@ -31,55 +26,20 @@ mapping::ObjectRecord object_record_from_box(uint64_t id, int class_id,
 ObjectStageOutput ground_truth_objects(const Frame& frame, const DatasetInfo& info) {
   ObjectStageOutput out;
   const auto t0 = std::chrono::steady_clock::now();
-  std::map<uint32_t, const GtObject*> gt;
+  MaskDetectionParams mask;
+  mask.min_pixels = 1;           // ground truth: every visible pixel counts
+  mask.default_class = {0, ""};  // an ID without a ground-truth object
   for (const GtObject& o : info.objects) {
-    gt[o.id] = &o;
     out.objects.push_back(object_record_from_box(o.id, o.class_id, o.class_name, o.box));
+    mask.classes[o.id] = {o.class_id, o.class_name};
   }
-  const InstanceImage& ins = frame.instance;
-  if (ins.empty()) {
-    out.ms = ms_since(t0);
-    return out;
+  if (!frame.instance.empty()) {
+    MaskDetections md = detections_from_mask(mask_labels(frame.instance), mask);
+    for (size_t k = 0; k < md.detections.size(); ++k) md.detections[k].gt_id = md.labels[k];
+    out.keyframe_objects.detections = std::move(md.detections);
+    out.keyframe_objects.object_ids.assign(md.labels.begin(), md.labels.end());
+    out.keyframe_objects.instance = std::move(md.instance);
   }
-  // Boxes of each ID's pixels (continuous coordinates: pixel u covers [u − ½, u + ½]).
-  struct Extent {
-    int u0 = std::numeric_limits<int>::max(), v0 = std::numeric_limits<int>::max(), u1 = -1, v1 = -1;
-  };
-  std::map<uint16_t, Extent> extents;
-  for (int v = 0; v < ins.height; ++v) {
-    for (int u = 0; u < ins.width; ++u) {
-      const uint16_t id = ins.at(u, v);
-      if (id == 0) continue;
-      Extent& e = extents[id];
-      e.u0 = std::min(e.u0, u);
-      e.v0 = std::min(e.v0, v);
-      e.u1 = std::max(e.u1, u);
-      e.v1 = std::max(e.v1, v);
-    }
-  }
-  std::map<uint16_t, uint16_t> index;  // object ID -> detection index + 1
-  for (const auto& [id, e] : extents) {
-    Detection2d d;
-    const auto it = gt.find(id);
-    if (it != gt.end()) {
-      d.class_id = it->second->class_id;
-      d.class_name = it->second->class_name;
-    }
-    d.score = 1.f;
-    d.box.x_min = e.u0 - 0.5;
-    d.box.y_min = e.v0 - 0.5;
-    d.box.x_max = e.u1 + 0.5;
-    d.box.y_max = e.v1 + 0.5;
-    d.gt_id = id;
-    out.keyframe_objects.detections.push_back(d);
-    out.keyframe_objects.object_ids.push_back(id);
-    index[id] = static_cast<uint16_t>(out.keyframe_objects.detections.size());
-  }
-  InstanceImage renumbered(ins.width, ins.height, 1, 0);
-  for (size_t p = 0; p < ins.data.size(); ++p) {
-    if (ins.data[p] != 0) renumbered.data[p] = index[ins.data[p]];
-  }
-  out.keyframe_objects.instance = std::move(renumbered);
   out.ms = ms_since(t0);
   return out;
 }

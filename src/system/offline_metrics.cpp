@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <sstream>
 
+#include "dqo_map/system/offline_report.h"
+
 namespace dqo::system {
 namespace {
 
@@ -13,16 +15,6 @@ std::string num(double v) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%.6g", v);
   return buf;
-}
-
-std::string quoted(const std::string& s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    if (static_cast<unsigned char>(c) < 0x20) continue;
-    out += c;
-  }
-  return out + "\"";
 }
 
 std::string recon_json(const mesh::ReconMetrics& m) {
@@ -105,12 +97,12 @@ std::string metrics_json(const OfflineMetrics& m) {
     for (size_t i = 0; i < m.recon->rows.size(); ++i) {
       const mesh::ObjectReconRow& r = m.recon->rows[i];
       out << (i ? ",\n      " : "\n      ") << "{\"id\": " << r.est_id << ", \"gt_id\": " << r.gt_id
-          << ", \"class\": " << quoted(r.class_name) << ", \"has_mesh\": "
+          << ", \"class\": " << json_quoted(r.class_name) << ", \"has_mesh\": "
           << (r.has_mesh ? "true" : "false");
       if (r.has_mesh) {
         out << ", \"metrics\": " << recon_json(r.metrics);
       } else {
-        out << ", \"note\": " << quoted(r.note);
+        out << ", \"note\": " << json_quoted(r.note);
       }
       out << "}";
     }
@@ -120,7 +112,7 @@ std::string metrics_json(const OfflineMetrics& m) {
     out << "null";
   }
   out << ",\n  \"notes\": [";
-  for (size_t i = 0; i < m.notes.size(); ++i) out << (i ? ", " : "") << quoted(m.notes[i]);
+  for (size_t i = 0; i < m.notes.size(); ++i) out << (i ? ", " : "") << json_quoted(m.notes[i]);
   out << "]\n}\n";
   return out.str();
 }

@@ -12,15 +12,6 @@
 namespace dqo::system {
 namespace {
 
-std::string quoted(const std::string& s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    if (static_cast<unsigned char>(c) >= 0x20) out += c;
-  }
-  return out + "\"";
-}
-
 // Per-stage summary of a list of milliseconds.
 std::string stage_json(const std::vector<double>& ms) {
   std::vector<double> sorted = ms;
@@ -53,6 +44,15 @@ void id_colour(uint32_t id, uint8_t* rgb) {
 
 }  // namespace
 
+std::string json_quoted(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') out += '\\';
+    if (static_cast<unsigned char>(c) >= 0x20) out += c;
+  }
+  return out + "\"";
+}
+
 double peak_memory_mb() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
@@ -65,7 +65,7 @@ std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper
   const PinholeCamera* camera = mapper.keyframe_poses().empty() ? nullptr
                                                                 : &mapper.keyframe_poses()[0].camera;
   std::ostringstream t;
-  t << "{\n  \"input\": " << quoted(input) << ",\n  \"width\": " << (camera ? camera->width : 0)
+  t << "{\n  \"input\": " << json_quoted(input) << ",\n  \"width\": " << (camera ? camera->width : 0)
     << ", \"height\": " << (camera ? camera->height : 0) << ",\n  \"frames\": " << run.frames
     << ", \"keyframes\": " << run.keyframes << ", \"dropped_keyframes\": " << mapper.dropped()
     << ",\n  \"total_s\": " << seconds << ", \"frames_per_second\": "
@@ -83,8 +83,8 @@ std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper
       << (r.labelled ? "true" : "false") << ", \"ms\": " << std::round(r.total_ms * 10) / 10
       << ", \"added\": " << r.trainer.added_missing + r.trainer.added_error << ", \"pruned\": "
       << r.trainer.pruned_stale + r.trainer.pruned_oversized + r.trainer.pruned_invisible +
-             r.pruned_budget
-      << ", \"pruned_budget\": " << r.pruned_budget << ", \"gaussians\": " << r.num_gaussians
+             r.trainer.pruned_budget
+      << ", \"pruned_budget\": " << r.trainer.pruned_budget << ", \"gaussians\": " << r.num_gaussians
       << ", \"bytes\": " << r.bytes << ", \"objects\": {";
     bool first_object = true;
     for (const auto& [id, n] : r.gaussians_per_object) {

@@ -5,37 +5,13 @@
 #include <cmath>
 #include <utility>
 
-#include "dqo_map/objects/mask_detections.h"
+#include "dqo_map/common/mask_detections.h"
+#include "dqo_map/common/stopwatch.h"
 #include "dqo_map/tracking/tracking_session.h"
+#include "trajectory_anchor.h"
 
 namespace dqo::system {
 namespace {
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-// Moves poses of another world frame onto the ground truth: fixed at the first frame that has a
-// pose and ground truth; poses before it mean nothing in the ground truth's frame (dropped).
-class Anchor {
- public:
-  explicit Anchor(bool enabled) : enabled_(enabled) {}
-  std::optional<SE3> apply(const Frame& frame, const std::optional<SE3>& T_wc) {
-    if (!enabled_ || !T_wc) return T_wc;
-    if (!anchored_ && frame.has_pose) {
-      T_gt_est_ = frame.T_wc * T_wc->inverse();
-      anchored_ = true;
-    }
-    if (!anchored_) return std::nullopt;
-    return T_gt_est_ * *T_wc;
-  }
-  SE3 apply(const SE3& T_wc) const { return enabled_ && anchored_ ? T_gt_est_ * T_wc : T_wc; }
-
- private:
-  bool enabled_;
-  bool anchored_ = false;
-  SE3 T_gt_est_;
-};
 
 mapping::MappingEvent to_mapping_event(const objects::ObjectEvent& e) {
   mapping::MappingEvent m;
@@ -60,7 +36,7 @@ mapping::MappingEvent to_mapping_event(const objects::ObjectEvent& e) {
 void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCamera& camera,
                         bool anchor, OfflineStages* stages) {
   auto session = std::make_shared<tracking::TrackingSession>(config);
-  auto anchors = std::make_shared<Anchor>(anchor);
+  auto anchors = std::make_shared<TrajectoryAnchor>(anchor);
   stages->pose = [session, anchors, camera](const Frame& frame) {
     const auto t0 = std::chrono::steady_clock::now();
     FramePose out;
@@ -91,7 +67,7 @@ void add_trajectory_stage(Trajectory trajectory, const PoseLookupParams& lookup,
                    [](const TimedPose& a, const TimedPose& b) { return a.first < b.first; });
   auto sorted = std::make_shared<Trajectory>(std::move(trajectory));
   auto selector = std::make_shared<KeyframeSelector>(keyframes);
-  auto anchors = std::make_shared<Anchor>(anchor);
+  auto anchors = std::make_shared<TrajectoryAnchor>(anchor);
   auto next_id = std::make_shared<mapping::KeyframeId>(1);
   stages->pose = [sorted, lookup, selector, anchors, next_id](const Frame& frame) {
     FramePose out;
@@ -167,7 +143,7 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
                                                         OfflineStages* stages) {
   auto mapper = std::make_shared<objects::ObjectMapper>(params);
   // Mask labels are ground-truth object IDs: their classes come from the ground truth.
-  objects::MaskDetectionParams mask_params;
+  MaskDetectionParams mask_params;
   mask_params.default_class = {0, "object"};
   for (const GtObject& o : info.objects) mask_params.classes[o.id] = {o.class_id, o.class_name};
   stages->objects = [mapper, detections, labels, mask_params](const mapping::MappingKeyframe& kf,
@@ -183,9 +159,7 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
     okf.depth.height = kf.depth.height;
     InstanceImage detector_instance;  // k+1 = input detection k (mask detections only)
     if (detections == DetectionSource::kMasks) {
-      objects::LabelImage mask(frame.instance.width, frame.instance.height, 1, 0u);
-      std::copy(frame.instance.data.begin(), frame.instance.data.end(), mask.data.begin());
-      objects::MaskDetections md = objects::detections_from_mask(mask, mask_params);
+      MaskDetections md = detections_from_mask(mask_labels(frame.instance), mask_params);
       okf.detections = std::move(md.detections);
       detector_instance = std::move(md.instance);
     } else {

@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "dqo_map/common/frame_source.h"
 #include "dqo_map/gaussians/pixel_labels.h"
 #include "dqo_map/gaussians/render_metrics.h"
 #include "dqo_map/gaussians/trainer.h"
@@ -82,19 +83,6 @@ int usage(const char* argv0) {
                "[--ppm DIR] [--set NAME=VALUE ...]\n",
                argv0);
   return 2;
-}
-
-// Pinhole intrinsics for the image scaled by s (pixel centres at integer coordinates).
-dqo::PinholeCamera scaled_camera(const dqo::PinholeCamera& c, int width) {
-  const double s = static_cast<double>(width) / c.width;
-  dqo::PinholeCamera out = c;
-  out.width = width;
-  out.height = static_cast<int>(std::lround(c.height * s));
-  out.fx = c.fx * s;
-  out.fy = c.fy * s;
-  out.cx = (c.cx + 0.5) * s - 0.5;
-  out.cy = (c.cy + 0.5) * s - 0.5;
-  return out;
 }
 
 void write_ppm(const std::string& path, const dqo::ImageRgb8& img) {
@@ -305,7 +293,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", error.c_str());
     return 1;
   }
-  scene->camera = scaled_camera(scene->camera, width);
+  scene->camera = dqo::scale_camera(scene->camera, static_cast<double>(width) / scene->camera.width);
   const dqo::sim::Renderer renderer(*scene, threads);
   const int max_keyframes = (renderer.num_frames() + every - 1) / every;
   if (keyframes <= 0 || keyframes > max_keyframes) keyframes = max_keyframes;

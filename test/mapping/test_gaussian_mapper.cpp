@@ -273,7 +273,7 @@ TEST(GaussianMapper, BudgetHolds) {
     auto r = mapper.process_next();
     ASSERT_TRUE(r.has_value());
     EXPECT_LE(r->num_gaussians, 1500u);
-    pruned += r->pruned_budget;
+    pruned += r->trainer.pruned_budget;
   }
   EXPECT_GT(pruned, 0u);
   EXPECT_EQ(mapper.map().size(), 1500u);

@@ -136,7 +136,7 @@ TEST(ObjectConversions, InstanceRenumbering) {
   EXPECT_FLOAT_EQ(msg.detections.detections[3].x_min, 3.0f);
   ASSERT_EQ(msg.detections.instance.encoding, "mono16");
   ASSERT_EQ(msg.detections.instance.width, 37u);
-  objects::LabelImage back;
+  LabelImage back;
   std::string error;
   ASSERT_TRUE(from_label_msg(msg.detections.instance, &back, &error)) << error;
   for (size_t i = 0; i < out.data.size(); ++i) ASSERT_EQ(back.data[i], out.data[i]);
@@ -152,17 +152,17 @@ TEST(ObjectConversions, LabelEncodings) {
     m.data.assign(m.step * 2, 0);
     return m;
   };
-  objects::LabelImage labels;
+  LabelImage labels;
   std::string error;
   sensor_msgs::Image rgb = make("rgb8", 3, false);
   rgb.data[rgb.step + 3 + 0] = 0x12, rgb.data[rgb.step + 3 + 1] = 0x34, rgb.data[rgb.step + 3 + 2] = 0x56;
   ASSERT_TRUE(from_label_msg(rgb, &labels, &error)) << error;
-  EXPECT_EQ(labels.at(1, 1), objects::pack_rgb(0x12, 0x34, 0x56));
+  EXPECT_EQ(labels.at(1, 1), pack_rgb(0x12, 0x34, 0x56));
   EXPECT_EQ(labels.at(0, 0), 0u);
   sensor_msgs::Image bgr = rgb;
   bgr.encoding = "bgr8";
   ASSERT_TRUE(from_label_msg(bgr, &labels, &error)) << error;
-  EXPECT_EQ(labels.at(1, 1), objects::pack_rgb(0x56, 0x34, 0x12));
+  EXPECT_EQ(labels.at(1, 1), pack_rgb(0x56, 0x34, 0x12));
   sensor_msgs::Image m16 = make("mono16", 2, true);
   m16.data[m16.step + 2] = 0x01, m16.data[m16.step + 3] = 0x02;  // big-endian 0x0102 at (1, 1)
   ASSERT_TRUE(from_label_msg(m16, &labels, &error)) << error;

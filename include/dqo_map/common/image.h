@@ -31,5 +31,6 @@ struct Image {
 using ImageRgb8 = Image<uint8_t>;       // 3 channels, R G B
 using DepthImage = Image<float>;        // metres; 0 or NaN = no measurement
 using InstanceImage = Image<uint16_t>;  // object IDs (ground truth) or detection index + 1; 0 = none
+using LabelImage = Image<uint32_t>;     // one channel: instance labels of a mask, 0 = none
 
 }  // namespace dqo

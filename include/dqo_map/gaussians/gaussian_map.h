@@ -45,6 +45,11 @@ class GaussianMap {
   // rest. Returns how many were removed.
   size_t remove_if(const std::vector<uint8_t>& remove);
 
+  // Gaussian i as add() takes it (its opacity explicit); confidence and stable flag apart.
+  GaussianInit gaussian(size_t i) const;
+  // The Gaussians at `indices`, in that order, as a map of their own (confidence and stable kept).
+  GaussianMap subset(const std::vector<uint32_t>& indices) const;
+
   // Gaussians of one object (0 = background), in index order. A scan of the IDs (~0.1 ms per 100k
   // Gaussians) rather than a cached index: a const call stays safe from several threads at once,
   // and extraction of one object is rare next to the trainer's edits that would invalidate a cache.

@@ -73,8 +73,7 @@ struct MappingReport {
   bool labelled = false;          // its objects arrived; false: mapped as background (timeout)
   bool from_instance = false;     // labels from an instance image (else quadric ∩ box)
   double label_ms = 0.0, train_ms = 0.0, total_ms = 0.0;
-  gs::KeyframeReport trainer;     // added, pruned, loss, ...
-  size_t pruned_budget = 0;       // removed to keep max_gaussians
+  gs::KeyframeReport trainer;     // added, pruned (also to keep max_gaussians), loss, ...
   size_t num_gaussians = 0;
   size_t bytes = 0;               // the map's attribute arrays
   std::map<ObjectId, size_t> gaussians_per_object;  // 0 = background

@@ -11,6 +11,9 @@
 
 namespace dqo::system {
 
+// A JSON string literal of `text` (quotes and backslashes escaped, control characters dropped).
+std::string json_quoted(const std::string& text);
+
 // This process's peak resident memory, megabytes.
 double peak_memory_mb();
 

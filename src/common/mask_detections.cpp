@@ -1,10 +1,10 @@
-#include "dqo_map/objects/mask_detections.h"
+#include "dqo_map/common/mask_detections.h"
 
 #include <algorithm>
 #include <climits>
 #include <limits>
 
-namespace dqo::objects {
+namespace dqo {
 namespace {
 
 struct Extent {
@@ -13,6 +13,12 @@ struct Extent {
 };
 
 }  // namespace
+
+LabelImage mask_labels(const InstanceImage& instance) {
+  LabelImage out(instance.width, instance.height, instance.channels, 0u);
+  std::copy(instance.data.begin(), instance.data.end(), out.data.begin());
+  return out;
+}
 
 MaskDetections detections_from_mask(const LabelImage& labels, const MaskDetectionParams& params) {
   MaskDetections out;
@@ -84,4 +90,4 @@ MaskDetections detections_from_mask(const LabelImage& labels, const MaskDetectio
   return out;
 }
 
-}  // namespace dqo::objects
+}  // namespace dqo

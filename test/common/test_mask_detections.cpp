@@ -6,9 +6,9 @@
 #include <random>
 #include <set>
 
-#include "dqo_map/objects/mask_detections.h"
+#include "dqo_map/common/mask_detections.h"
 
-namespace dqo::objects {
+namespace dqo {
 namespace {
 
 // Fills the pixels of a disc (centre, radius) and returns its tight pixel extent.
@@ -144,4 +144,4 @@ TEST(MaskDetections, EmptyAndMalformedMasks) {
 }
 
 }  // namespace
-}  // namespace dqo::objects
+}  // namespace dqo

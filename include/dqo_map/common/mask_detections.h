@@ -1,6 +1,7 @@
 #pragma once
 // Detections from an instance mask (DESIGN.md: the node that turns instance masks into detections,
-// for datasets that have masks and no detector). One box per instance label, the instance image
+// for datasets that have masks and no detector; the offline runner's ground-truth object stage).
+// One box per instance label, the instance image
 // renumbered as a DetectionArray's (value k+1 = detection k), a class from a table keyed by label.
 //
 // Labels are plain integers: a mono8/mono16 mask's value, or a colour-coded mask's colour packed as
@@ -14,9 +15,7 @@
 #include "dqo_map/common/dataset.h"
 #include "dqo_map/common/image.h"
 
-namespace dqo::objects {
-
-using LabelImage = Image<uint32_t>;  // one channel; 0 = no instance
+namespace dqo {
 
 inline uint32_t pack_rgb(uint8_t r, uint8_t g, uint8_t b) {
   return (static_cast<uint32_t>(r) << 16) | (static_cast<uint32_t>(g) << 8) | b;
@@ -51,8 +50,11 @@ struct MaskDetections {
   int dropped_too_many = 0;       // beyond 65535 kept instances (a uint16 image cannot number them)
 };
 
+// A uint16 instance image (a dataset's ground-truth IDs) as mask labels.
+LabelImage mask_labels(const InstanceImage& instance);
+
 // One pass over the mask plus one per kept instance count; labels.channels must be 1 (an empty
 // result otherwise). Instances beyond 65535 (highest labels) are dropped and counted.
 MaskDetections detections_from_mask(const LabelImage& labels, const MaskDetectionParams& params);
 
-}  // namespace dqo::objects
+}  // namespace dqo
