@@ -4,7 +4,8 @@
 # Components the messages need are required for the ring; if one is missing the ring is switched off
 # with a message (the core still builds), never a failed configure.
 set(DQO_ROS_MSG_COMPONENTS message_generation std_msgs geometry_msgs sensor_msgs)
-set(DQO_ROS_NODE_COMPONENTS roscpp rosbag tf2_msgs tf2_ros message_filters nav_msgs visualization_msgs rostest)
+set(DQO_ROS_NODE_COMPONENTS roscpp rosbag tf2_msgs tf2_ros message_filters nav_msgs visualization_msgs rostest
+                             nodelet diagnostic_msgs)
 
 set(_dqo_missing "")
 foreach(_c ${DQO_ROS_MSG_COMPONENTS} ${DQO_ROS_NODE_COMPONENTS})

@@ -67,7 +67,7 @@ void MappingWorker::run() {
     std::optional<MappingReport> report;
     bool more = false;
     {
-      std::lock_guard<std::mutex> lock(mapper_mutex_);
+      std::lock_guard<TicketLock> lock(mapper_mutex_);
       for (Input& input : batch) hand_over(input, &errors);
       if (flush) mapper_.flush();
       report = mapper_.process_next();

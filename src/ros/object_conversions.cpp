@@ -28,6 +28,13 @@ dqo_map::Object to_object_msg(const objects::MapObject& object) {
   msg.observations = static_cast<uint32_t>(std::max<size_t>(object.observation_count, object.observations.size()));
   msg.confidence = static_cast<float>(object.confidence);
   msg.num_gaussians = 0;
+  // The box the meshes are cut to (the mapping nodelet's, as the offline runner's records): the
+  // fitted one where there is one.
+  const OrientedBox box = object.has_box ? object.box : OrientedBox{q.centre(), q.rotation(), q.semi_axes()};
+  msg.box_pose = to_pose_msg(SE3::from_rotation_translation(box.rotation, box.centre));
+  msg.box_half_extents.x = box.half_extents.x();
+  msg.box_half_extents.y = box.half_extents.y();
+  msg.box_half_extents.z = box.half_extents.z();
   return msg;
 }
 

@@ -97,20 +97,29 @@ std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper
   return t.str();
 }
 
+ImageRgb8 render_colour_image(const gs::RenderOutput& r) {
+  ImageRgb8 out(r.width, r.height, 3, 0);
+  for (size_t k = 0; k < out.data.size(); ++k) {
+    out.data[k] = static_cast<uint8_t>(std::clamp(std::lround(r.rgb[k] * 255.f), 0L, 255L));
+  }
+  return out;
+}
+
+ImageRgb8 render_ids_image(const gs::RenderOutput& r) {
+  ImageRgb8 out(r.width, r.height, 3, 0);
+  for (size_t p = 0; p < r.alpha.size(); ++p) id_colour(r.alpha[p] > 0.5f ? r.dominant_id[p] : 0, &out.data[3 * p]);
+  return out;
+}
+
 ImageRgb8 render_colour_and_ids(mapping::GaussianMapper& mapper, const mapping::KeyframePose& k) {
   gs::RenderOutput r;
   mapper.render(k.camera, k.T_wc, &r);
+  const ImageRgb8 colour = render_colour_image(r), ids = render_ids_image(r);
   const int w = r.width, h = r.height;
   ImageRgb8 out(2 * w, h, 3, 0);
   for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      const size_t p = static_cast<size_t>(y) * w + x;
-      for (int c = 0; c < 3; ++c) {
-        out.at(x, y, c) =
-            static_cast<uint8_t>(std::clamp(std::lround(r.rgb[3 * p + c] * 255.f), 0L, 255L));
-      }
-      id_colour(r.alpha[p] > 0.5f ? r.dominant_id[p] : 0, &out.at(w + x, y, 0));
-    }
+    std::copy_n(&colour.at(0, y), 3 * w, &out.at(0, y));
+    std::copy_n(&ids.at(0, y), 3 * w, &out.at(w, y));
   }
   return out;
 }

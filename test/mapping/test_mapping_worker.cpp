@@ -99,6 +99,27 @@ TEST(MappingWorker, ErrorsComeBackAndFlushMapsTheWaiting) {
   EXPECT_FALSE(reports[0].labelled);
 }
 
+TEST(MappingWorker, QueriesWaitForOneStepAtMostWhileTheWorkerIsBusy) {
+  // A busy worker unlocks and relocks the mapper between steps; a mutex alone would let it win
+  // every time and starve the queries (the nodelet's diagnostics and services). Back-to-back queries
+  // must each see at most one more keyframe mapped than the one before.
+  MappingWorker worker(params());
+  worker.set_objects(testing::truth(0).objects);
+  for (KeyframeId id = 1; id <= 6; ++id) {
+    worker.add_keyframe(keyframe(id));
+    worker.add_keyframe_objects(objects(id));
+  }
+  size_t previous = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int queries = 0; std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60); ++queries) {
+    const size_t seen = worker.with_mapper([](GaussianMapper& m) { return m.keyframes_mapped(); });
+    ASSERT_LE(seen, previous + 1) << "query " << queries << " waited for more than one mapping step";
+    previous = seen;
+    if (seen == 6) break;
+  }
+  EXPECT_EQ(previous, 6u) << "every keyframe is mapped while queries keep coming";
+}
+
 TEST(MappingWorker, StopsPromptlyWithInputsPending) {
   const auto t0 = std::chrono::steady_clock::now();
   {

@@ -7,6 +7,7 @@
 // travel by value through an inbox, the worker sleeps on a condition variable.
 
 #include <atomic>
+#include <cstdint>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -20,6 +21,30 @@
 #include "dqo_map/mapping/gaussian_mapper.h"
 
 namespace dqo::mapping {
+
+// A mutex that serves its waiters in the order they came (tickets). std::mutex is not fair: the
+// worker, unlocking and relocking it between two steps, would win every time and a query could wait
+// for ever; queries back to back would as well hold the worker off. BasicLockable.
+class TicketLock {
+ public:
+  void lock() {
+    std::unique_lock<std::mutex> l(mutex_);
+    const uint64_t ticket = next_++;
+    turn_.wait(l, [&] { return serving_ == ticket; });
+  }
+  void unlock() {
+    {
+      std::lock_guard<std::mutex> l(mutex_);
+      ++serving_;
+    }
+    turn_.notify_all();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable turn_;
+  uint64_t next_ = 0, serving_ = 0;
+};
 
 class MappingWorker {
  public:
@@ -42,7 +67,7 @@ class MappingWorker {
   // (queries, save, load, extract). Waits for the step in progress, never for the queue.
   template <typename Fn>
   auto with_mapper(Fn&& fn) {
-    std::lock_guard<std::mutex> lock(mapper_mutex_);
+    std::lock_guard<TicketLock> lock(mapper_mutex_);
     return fn(mapper_);
   }
 
@@ -67,7 +92,7 @@ class MappingWorker {
   void hand_over(Input& input, std::vector<std::string>* errors);
 
   GaussianMapper mapper_;  // guarded by mapper_mutex_
-  std::mutex mapper_mutex_;
+  TicketLock mapper_mutex_;
 
   mutable std::mutex inbox_mutex_;  // guards inbox_, reports_, errors_ and the three flags
   std::condition_variable wake_;     // the worker: an input, a flush or stop

@@ -22,6 +22,12 @@ double peak_memory_mb();
 std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper& mapper,
                          const std::string& input, double mesh_seconds);
 
+// A render's colour (clamped to [0, 1]) as RGB, and each pixel's object ID as a colour per ID (the
+// background, and pixels less than half opaque, dark grey; nothing black). Also the mapping
+// nodelet's map_render and map_render_ids.
+ImageRgb8 render_colour_image(const gs::RenderOutput& render);
+ImageRgb8 render_ids_image(const gs::RenderOutput& render);
+
 // The map rendered from a keyframe: colour on the left, each pixel's object ID on the right (a
 // colour per ID, the background dark grey, nothing black).
 ImageRgb8 render_colour_and_ids(mapping::GaussianMapper& mapper, const mapping::KeyframePose& k);
