@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <cmath>
 #include <limits>
 
 namespace dqo {
@@ -86,6 +87,45 @@ MaskDetections detections_from_mask(const LabelImage& labels, const MaskDetectio
       last_value = it == index_of.end() ? 0 : it->second;
     }
     out.instance.data[i] = last_value;
+  }
+  return out;
+}
+
+InstanceImage instance_for_detections(const InstanceImage& gt,
+                                      const std::vector<Detection2d>& detections) {
+  InstanceImage out(gt.width, gt.height, 1, 0);
+  std::vector<float> best(gt.data.size(), -1.f);
+  for (size_t j = 0; j < detections.size() && j < 65535; ++j) {
+    const Detection2d& d = detections[j];
+    const int u0 = std::max(0, static_cast<int>(std::ceil(d.box.x_min)));
+    const int v0 = std::max(0, static_cast<int>(std::ceil(d.box.y_min)));
+    const int u1 = std::min(gt.width - 1, static_cast<int>(std::floor(d.box.x_max)));
+    const int v1 = std::min(gt.height - 1, static_cast<int>(std::floor(d.box.y_max)));
+    uint32_t id = d.gt_id;
+    if (id == 0) {
+      std::map<uint16_t, int> counts;
+      for (int v = v0; v <= v1; ++v) {
+        for (int u = u0; u <= u1; ++u) {
+          if (gt.at(u, v) != 0) ++counts[gt.at(u, v)];
+        }
+      }
+      int most = 0;
+      for (const auto& [k, n] : counts) {
+        if (n > most) {
+          most = n;
+          id = k;
+        }
+      }
+    }
+    if (id == 0) continue;
+    // The whole instance, not only its part inside the (possibly noisy) box: the mask is the
+    // better outline, the box only says which instance the detection is.
+    for (size_t p = 0; p < gt.data.size(); ++p) {
+      if (gt.data[p] == id && d.score > best[p]) {
+        best[p] = d.score;
+        out.data[p] = static_cast<uint16_t>(j + 1);
+      }
+    }
   }
   return out;
 }

@@ -87,6 +87,14 @@ void MappingWorker::run() {
   }
 }
 
+void MappingWorker::flush() {
+  {
+    std::lock_guard<std::mutex> lock(inbox_mutex_);
+    flush_ = true;
+  }
+  wake_.notify_one();
+}
+
 void MappingWorker::wait_until_idle(bool flush) {
   std::unique_lock<std::mutex> lock(inbox_mutex_);
   if (flush) {

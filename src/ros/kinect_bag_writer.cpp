@@ -1,11 +1,13 @@
 #include "dqo_map/ros/kinect_bag_writer.h"
 
+#include <cstring>
 #include <cmath>
 
 #include <rosbag/bag.h>
 #include <tf2_msgs/TFMessage.h>
 
 #include "conversions.h"
+#include "dqo_map/common/mask_detections.h"
 
 namespace dqo::ros_bridge {
 namespace {
@@ -82,7 +84,16 @@ bool KinectBagWriter::write(const Frame& frame, std::string* error) {
     s.bag.write(o.rgb_topic, stamp, to_bgra8_msg(frame.rgb, header));
     s.bag.write(o.depth_topic, stamp, to_depth_mm_msg(frame.depth, header));
     s.bag.write(o.camera_info_topic, stamp, to_camera_info_msg(s.info.camera, header, "rational_polynomial"));
-    if (o.detections) s.bag.write(o.detections_topic, stamp, to_detection_array_msg(frame.detections, header));
+    if (o.detections) {
+      dqo_map::DetectionArray detections = to_detection_array_msg(frame.detections, header);
+      // A segmenting detector's output: the instance masks numbered by detection (k+1 = detection k).
+      if (o.instance_masks && !frame.instance.empty()) {
+        const InstanceImage inst = instance_for_detections(frame.instance, frame.detections);
+        detections.instance = image_msg(inst, "mono16", 2, header);
+        std::memcpy(detections.instance.data.data(), inst.data.data(), detections.instance.data.size());
+      }
+      s.bag.write(o.detections_topic, stamp, detections);
+    }
     if (o.ground_truth_tf && frame.has_pose) {
       tf2_msgs::TFMessage tf;
       const SE3 T_map_base = frame.T_wc * s.T_base_rgb.inverse();

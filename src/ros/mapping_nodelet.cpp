@@ -76,6 +76,10 @@ class MappingNodelet : public nodelet::Nodelet {
     double diagnostics_period = 1.0;
     double progress_period = 10.0;     // seconds between progress lines in the log
     int queue_size = 20;               // keyframe subscriber queue (each carries its images)
+    // Seconds without a new keyframe after which keyframes still waiting for their objects are
+    // mapped as background: the input stopped (a bag ended, a detector died), so keyframe time,
+    // which objects_timeout counts, stands still.
+    double idle_flush = 10.0;
   };
 
   void onInit() override;
@@ -134,6 +138,8 @@ class MappingNodelet : public nodelet::Nodelet {
   std::atomic<uint64_t> mapped_at_save_{0}, mapped_at_render_{0}, mapped_at_cloud_{0};
   std::atomic<bool> objects_dirty_{false};
   ros::WallTime last_progress_, last_render_, last_cloud_, last_diag_, last_objects_;
+  std::atomic<int64_t> last_keyframe_wall_ns_{0};  // wall time of the newest keyframe
+  std::atomic<bool> flushed_idle_{false};          // flushed since that keyframe
   uint64_t mapped_at_progress_ = 0;
 
   ros::Subscriber keyframe_sub_, kf_objects_sub_, poses_sub_, objects_sub_, events_sub_, map_id_sub_;
@@ -171,17 +177,19 @@ bool MappingNodelet::read_params(std::string* error) {
   pnh.param("diagnostics_period", p_.diagnostics_period, p_.diagnostics_period);
   pnh.param("progress_period", p_.progress_period, p_.progress_period);
   pnh.param("queue_size", p_.queue_size, p_.queue_size);
+  pnh.param("idle_flush", p_.idle_flush, p_.idle_flush);
   const std::set<std::string> known = {"map_frame",          "output_dir",       "autosave_file",
                                        "autosave_period",    "resume",           "render_period",
                                        "gaussians_period",   "gaussians_max_points", "diagnostics_period",
-                                       "progress_period",    "queue_size",       "mapping"};
+                                       "progress_period",    "queue_size",       "idle_flush", "mapping"};
   for (const std::string& name : dqo::ros_bridge::unknown_private_params(pnh, known)) {
     NODELET_WARN("mapping: ignoring unknown parameter %s/%s", pnh.getNamespace().c_str(), name.c_str());
   }
   if (p_.autosave_file.empty() || fs::path(p_.autosave_file).has_parent_path() || p_.render_period <= 0.0 ||
       p_.gaussians_period <= 0.0 || p_.gaussians_max_points < 1 || p_.diagnostics_period <= 0.0 ||
-      p_.progress_period <= 0.0 || p_.queue_size < 1) {
-    *error = "autosave_file must be a plain file name, the periods > 0, gaussians_max_points and queue_size >= 1";
+      p_.progress_period <= 0.0 || p_.queue_size < 1 || p_.idle_flush <= 0.0) {
+    *error = "autosave_file must be a plain file name, the periods and idle_flush > 0, gaussians_max_points and "
+             "queue_size >= 1";
     return false;
   }
   // ~mapping through the same strict loader as dqo_map_offline --config.
@@ -307,6 +315,8 @@ void MappingNodelet::on_keyframe(const dqo_map::KeyFrame::ConstPtr& msg) {
     w->wait_until_idle(/*flush=*/true);
   }
   ++received_;
+  last_keyframe_wall_ns_ = static_cast<int64_t>(ros::WallTime::now().toNSec());
+  flushed_idle_ = false;
   w->add_keyframe(std::move(kf));
 }
 
@@ -416,6 +426,16 @@ void MappingNodelet::on_reports(const ros::WallTimerEvent&) {
     objects_dirty_ = true;
   }
   const ros::WallTime now = ros::WallTime::now();
+  const int64_t last_kf = last_keyframe_wall_ns_.load();
+  if (last_kf > 0 && !flushed_idle_ && (static_cast<int64_t>(now.toNSec()) - last_kf) * 1e-9 >= p_.idle_flush) {
+    flushed_idle_ = true;
+    const size_t waiting = w->with_mapper([](GaussianMapper& m) { return m.waiting(); });
+    if (waiting > 0) {
+      NODELET_INFO("mapping: no keyframe for %.0f s: mapping the %zu keyframes still waiting for their objects as "
+                   "background", p_.idle_flush, waiting);
+      w->flush();
+    }
+  }
   if ((now - last_progress_).toSec() >= p_.progress_period && mapped_.load() != mapped_at_progress_) {
     const double rate = (mapped_.load() - mapped_at_progress_) / (now - last_progress_).toSec();
     mapped_at_progress_ = mapped_.load();

@@ -32,7 +32,7 @@ namespace {
 
 constexpr char kUsage[] =
     "usage: dqo_make_scene SCENE.yaml OUT_DIR [--bag OUT.bag] [--frames N] [--every K] [--seed S]\n"
-    "                      [--scale S] [--no-noise] [--threads T] [--overwrite] [--gt-tf]\n"
+    "                      [--scale S] [--no-noise] [--threads T] [--overwrite] [--gt-tf] [--masks]\n"
     "  --bag OUT.bag  also write a rosbag in the Azure Kinect driver's layout (ROS builds only)\n"
     "  --frames N     at most N frames (default: the whole trajectory)\n"
     "  --every K      keep every K-th frame of the trajectory (default 1)\n"
@@ -41,7 +41,8 @@ constexpr char kUsage[] =
     "  --no-noise     no sensor or detector noise\n"
     "  --threads T    rendering threads (default: all cores)\n"
     "  --overwrite    replace OUT_DIR if it holds a dataset already\n"
-    "  --gt-tf        write the ground-truth map -> camera_base tf into the bag\n";
+    "  --gt-tf        write the ground-truth map -> camera_base tf into the bag\n"
+    "  --masks        attach instance masks to the bag's detections (as a segmenting detector)\n";
 
 struct Options {
   std::string scene;
@@ -55,6 +56,7 @@ struct Options {
   double scale = 1.0;
   bool overwrite = false;
   bool gt_tf = false;
+  bool masks = false;
 };
 
 bool parse_int(const char* text, long min, long* out) {
@@ -112,6 +114,8 @@ std::optional<Options> parse_args(int argc, char** argv) {
       o.overwrite = true;
     } else if (a == "--gt-tf") {
       o.gt_tf = true;
+    } else if (a == "--masks") {
+      o.masks = true;
     } else if (!a.empty() && a[0] == '-') {
       std::fprintf(stderr, "dqo_make_scene: unknown option %s\n%s", a.c_str(), kUsage);
       return std::nullopt;
@@ -245,6 +249,7 @@ int main(int argc, char** argv) {
   if (!opt->bag.empty()) {
     dqo::ros_bridge::KinectBagOptions bag_options;
     bag_options.ground_truth_tf = opt->gt_tf;
+    bag_options.instance_masks = opt->masks;
     bag = dqo::ros_bridge::KinectBagWriter::open(opt->bag, info, bag_options, &error);
     if (!bag) {
       writer.abort();

@@ -57,4 +57,12 @@ LabelImage mask_labels(const InstanceImage& instance);
 // result otherwise). Instances beyond 65535 (highest labels) are dropped and counted.
 MaskDetections detections_from_mask(const LabelImage& labels, const MaskDetectionParams& params);
 
+// The instance image of a keyframe's detections (value j+1 = detection j) from a ground-truth
+// instance image (object IDs): detection j takes the pixels of the ground-truth object it came from
+// (its gt_id, else the ID with most pixels in its box); where two claim one, the higher score wins.
+// What a segmenting detector gives; the offline runner's --labels masks and the synthetic bags'
+// detections (dqo_make_scene --masks) both make it here.
+InstanceImage instance_for_detections(const InstanceImage& gt_instance,
+                                      const std::vector<Detection2d>& detections);
+
 }  // namespace dqo

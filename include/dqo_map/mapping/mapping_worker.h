@@ -75,6 +75,10 @@ class MappingWorker {
   // keyframes still waiting for their objects are mapped as background too). For the end of a
   // bag, shutdown and tests.
   void wait_until_idle(bool flush = false);
+  // The keyframes waiting for their objects are mapped as background after the inputs given so
+  // far (GaussianMapper::flush), without waiting: the end of the input seen from outside (a bag
+  // that stopped).
+  void flush();
 
   // What happened since the last call.
   std::vector<MappingReport> take_reports();

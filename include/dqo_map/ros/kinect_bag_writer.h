@@ -19,6 +19,7 @@ struct KinectBagOptions {
   std::string base_frame = "camera_base";                   // root of the driver's tf tree
   std::string map_frame = "map";
   bool detections = true;
+  bool instance_masks = false;   // attach each frame's instance masks to its detections (mono16)
   bool ground_truth_tf = false;  // map -> camera_base from the ground-truth poses, on /tf
   double start_time = 1000.0;    // stamp of timestamp 0 (seconds; ROS time must be > 0)
 };

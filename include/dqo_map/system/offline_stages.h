@@ -51,10 +51,4 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
 // The object stage's objects as mapping records.
 std::vector<mapping::ObjectRecord> to_object_records(const std::vector<objects::MapObject>& objects);
 
-// The instance image of a keyframe's detections (value j+1 = detection j) from a ground-truth
-// instance image (object IDs): detection j takes the pixels of the ground-truth object it came from
-// (its gt_id, else the ID with most pixels in its box); where two claim one, the higher score wins.
-InstanceImage instance_for_detections(const InstanceImage& gt_instance,
-                                      const std::vector<Detection2d>& detections);
-
 }  // namespace dqo::system
