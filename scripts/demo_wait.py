@@ -28,7 +28,7 @@ def main():
 
     def on_diagnostics(msg):
         for status in msg.status:
-            if status.name == "dqo_map: mapping":
+            if status.name.startswith("dqo_map: mapping"):
                 latest.clear()
                 latest.update({kv.key: kv.value for kv in status.values})
                 latest["_level"] = status.level

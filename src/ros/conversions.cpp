@@ -54,7 +54,7 @@ sensor_msgs::Image to_depth_mm_msg(const DepthImage& depth, const std_msgs::Head
   for (size_t i = 0; i < n; ++i) {
     const float z = depth.data[i];
     uint16_t mm = 0;
-    if (std::isfinite(z) && z > 0.f && z * 1000.f < 65535.5f) mm = static_cast<uint16_t>(std::lround(z * 1000.f));
+    if (std::isfinite(z) && z > 0.f && z * 1000.0 < 65535.5) mm = static_cast<uint16_t>(std::lround(z * 1000.0));
     std::memcpy(&msg.data[2 * i], &mm, 2);  // little-endian host, is_bigendian = 0
   }
   return msg;
@@ -174,7 +174,9 @@ bool from_depth_msg(const sensor_msgs::Image& msg, DepthImage* depth, std::strin
     for (uint32_t x = 0; x < msg.width; ++x, ++out) {
       float z;
       if (mm) {
-        z = 0.001f * static_cast<float>(read_scalar<uint16_t>(in + 2 * x, big));
+        // As dataset folders read their PNGs (io/image_io.cpp depth_from_u16): the same
+        // millimetres give the same float, so a bag and its dataset folder map alike.
+        z = static_cast<float>(static_cast<double>(read_scalar<uint16_t>(in + 2 * x, big)) / 1000.0);
       } else {
         z = read_scalar<float>(in + 4 * x, big);
       }

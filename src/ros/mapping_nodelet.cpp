@@ -496,7 +496,7 @@ void MappingNodelet::publish_diagnostics() {
     if (!step_ms_.empty()) mean_ms /= step_ms_.size();
   }
   diagnostic_msgs::DiagnosticStatus s;
-  s.name = "dqo_map: mapping";
+  s.name = "dqo_map: mapping " + getName();  // one per nodelet: several may run
   s.hardware_id = dqo::mapping::to_string(mapper_params_.backend);
   s.level = diagnostic_msgs::DiagnosticStatus::OK;
   s.message = "mapping";

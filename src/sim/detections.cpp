@@ -100,6 +100,12 @@ std::vector<Detection2d> simulate_detections(const Frame& frame, const Detection
       if (fp.box.valid()) out.push_back(fp);
     }
   }
+  // Boxes as a detector publishes them (DetectionArray holds float32 pixels): a dataset folder and
+  // a bag of the same frames then carry the same numbers, and so map alike.
+  for (Detection2d& d : out) {
+    d.box.x_min = static_cast<float>(d.box.x_min), d.box.y_min = static_cast<float>(d.box.y_min);
+    d.box.x_max = static_cast<float>(d.box.x_max), d.box.y_max = static_cast<float>(d.box.y_max);
+  }
   return out;
 }
 
