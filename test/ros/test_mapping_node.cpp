@@ -33,6 +33,7 @@
 #include <dqo_map/LoadMap.h>
 #include <dqo_map/ObjectArray.h>
 #include <dqo_map/SaveMap.h>
+#include <ros/master.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 
@@ -226,6 +227,20 @@ std::map<uint64_t, size_t> counts_of(const dqo::mapping::MapFileContents& map) {
 }
 
 TEST_F(MappingNodeTest, SameObjectsAndGaussiansAsTheOfflineRunAndMeshesOfTheObjects) {
+  // ---- the stages on two addresses (mapping.test): the map below is made across them
+  auto uri_of = [](const std::string& node) {
+    XmlRpc::XmlRpcValue args, result, payload;
+    args[0] = ros::this_node::getName();
+    args[1] = node;
+    if (!ros::master::execute("lookupNode", args, result, payload, true)) return std::string();
+    return static_cast<std::string>(payload);
+  };
+  EXPECT_NE(uri_of("/dqo_map/tracking").find("//127.0.0.1:"), std::string::npos) << uri_of("/dqo_map/tracking");
+  std::string mapping_ip;
+  ros::NodeHandle("~").param<std::string>("mapping_ip", mapping_ip, "127.0.0.1");
+  EXPECT_NE(uri_of("/dqo_map/manager").find("//" + mapping_ip + ":"), std::string::npos) << uri_of("/dqo_map/manager");
+  if (mapping_ip == "127.0.0.1") std::printf("note: no second address (DQO_TEST_SECOND_IP): one address for all\n");
+
   // ---- the bag, paced: each keyframe mapped before the next frame (max_queue 0 drops nothing)
   for (size_t i = 0; i < captures_.size(); ++i) {
     play(captures_[i], i == 0, 20.0);
@@ -431,6 +446,63 @@ TEST_F(MappingNodeTest, ABurstBeyondMaxQueueDropsTheOldestAndTheNodeletLives) {
   EXPECT_TRUE(call("/dqo_map/mapping_burst/get_object", get)) << "the nodelet still answers";
 }
 
+// Stamps after the bag's, one second apart, for the frames the tests below make up.
+ros::Time later_stamp(const std::vector<Capture>& captures) {
+  static int n = 0;
+  return captures.back().stamp + ros::Duration(10.0 + n++);
+}
+
+TEST_F(MappingNodeTest, WithoutCameraInfoNothingIsMappedAndTheNodesLive) {
+  ASSERT_TRUE(wait_mapped(kMapping, 30.0));
+  const double received = diag_.value(kMapping, "keyframes received");
+  for (int k = 0; k < 3; ++k) {
+    const Capture c = dqo::ros_test::restamped(captures_[k], later_stamp(captures_));
+    dqo::ros_test::set_clock(clock_pub_, c.stamp);
+    tf_pub_.publish(c.tf);
+    det_pub_.publish(c.detections);
+    depth_pub_.publish(c.depth);  // colour and depth, no camera_info
+    rgb_pub_.publish(c.rgb);
+    ros::WallDuration(0.3).sleep();
+  }
+  ros::WallDuration(2.0).sleep();
+  EXPECT_EQ(diag_.value(kMapping, "keyframes received"), received) << "no camera_info, no keyframe";
+  dqo_map::GetObject get;
+  get.request.id = 1;
+  EXPECT_TRUE(call("/dqo_map/get_object", get)) << "the mapping nodelet answers";
+  dqo_map::ListObjects list;
+  EXPECT_TRUE(call("/dqo_map/list_objects", list)) << "the association node answers";
+}
+
+TEST_F(MappingNodeTest, KeyframesWhoseDetectionsNeverComeAreMappedAsBackground) {
+  ASSERT_TRUE(wait_mapped(kMapping, 30.0));
+  const double received = diag_.value(kMapping, "keyframes received");
+  const double gaussians = diag_.value(kMapping, "gaussians");
+  for (int k = 0; k < 3; ++k) {
+    Capture c = dqo::ros_test::restamped(captures_[k + 4], later_stamp(captures_));
+    dqo::ros_test::set_clock(clock_pub_, c.stamp);
+    tf_pub_.publish(c.tf);  // no detections
+    dqo::ros_test::publish_camera(c, info_pub_, depth_pub_, rgb_pub_);
+    ros::WallDuration(0.3).sleep();
+  }
+  // The last frame is held by the tracker's synchroniser; the two before it become keyframes whose
+  // objects never come: mapped once the input stops (idle_flush) or newer keyframes pass them.
+  ASSERT_TRUE(wait_for([&] { return diag_.value(kMapping, "keyframes received") >= received + 2; }, 20.0));
+  EXPECT_TRUE(wait_mapped(kMapping, 60.0, static_cast<size_t>(received + 2)))
+      << "keyframes without objects wait for ever: " << diag_.value(kMapping, "keyframes waiting for objects");
+  EXPECT_GE(diag_.value(kMapping, "gaussians"), gaussians);
+}
+
+TEST_F(MappingNodeTest, ALoopingBagIsMappedOn) {
+  // The bag's first frames again with their own stamps: time jumps back.
+  ASSERT_TRUE(wait_mapped(kMapping, 60.0));
+  const double received = diag_.value(kMapping, "keyframes received");
+  for (int k = 0; k < 4; ++k) play(captures_[k], k == 0, 5.0);
+  ASSERT_TRUE(wait_for([&] { return diag_.value(kMapping, "keyframes received") >= received + 3; }, 30.0))
+      << "keyframes after the jump back reach the mapping nodelet";
+  EXPECT_TRUE(wait_mapped(kMapping, 60.0, static_cast<size_t>(received + 3)));
+  EXPECT_EQ(diag_.value(kMapping, "keyframes dropped"), 0);
+}
+
 TEST_F(MappingNodeTest, KilledMappingProcessResumesFromItsAutosave) {
   ASSERT_TRUE(wait_mapped(kMapping, 30.0));
   const double gaussians = diag_.value(kMapping, "gaussians");
@@ -459,7 +531,7 @@ TEST_F(MappingNodeTest, KilledMappingProcessResumesFromItsAutosave) {
   // Three frames: the tracking node's synchroniser holds each until the next one comes.
   std::vector<ros::Time> stamps;
   for (int k = 0; k < 3; ++k) {
-    const Capture c = dqo::ros_test::restamped(captures_[k], captures_.back().stamp + ros::Duration(1.0 + k));
+    const Capture c = dqo::ros_test::restamped(captures_[k], later_stamp(captures_));
     stamps.push_back(c.stamp);
     play(c, false, 5.0);
   }
