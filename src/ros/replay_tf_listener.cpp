@@ -6,6 +6,7 @@ namespace dqo::ros_bridge {
 
 ReplayTfListener::ReplayTfListener(tf2_ros::Buffer& buffer, const ros::NodeHandle& nh, double jump_tolerance)
     : buffer_(buffer), jump_tolerance_(jump_tolerance), nh_(nh), spinner_(1, &queue_) {
+  buffer_.setUsingDedicatedThread(true);  // lookups with a timeout may wait: this thread fills it
   nh_.setCallbackQueue(&queue_);
   tf_sub_ = nh_.subscribe<tf2_msgs::TFMessage>(
       "/tf", 100, boost::bind(&ReplayTfListener::on_tf, this, boost::placeholders::_1, false));
