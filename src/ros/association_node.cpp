@@ -231,7 +231,7 @@ void AssociationNode::on_map_id(const std_msgs::StringConstPtr& msg) {
   const std::string old = mapper_->map_id();
   const std::vector<objects::ObjectEvent> dropped = mapper_->drop_objects();
   mapper_->set_map_id(msg->data);
-  matcher_.emplace(objects::StampMatcherParams{p_.stamp_tolerance, p_.buffer_seconds, p_.max_reorder_seconds});
+  // Keyframes still buffered in the matcher are the new map's (they come from the new tracker run).
   if (!dropped.empty()) {
     ROS_WARN("association: the map is now '%s', not '%s': %zu objects of the old map not resumed; IDs continue "
              "from %llu", msg->data.c_str(), old.c_str(), dropped.size(),
