@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 namespace dqo {
 
 Eigen::Matrix3d project_quadric(const DualQuadric& quadric, const Eigen::Matrix<double, 3, 4>& P) {
@@ -46,6 +48,21 @@ std::optional<ProjectedBox> projected_box(const DualQuadric& quadric, const Pinh
   out.box = box->clip(camera.width, camera.height);
   out.fraction_in_image = out.box.area() / box->area();
   return out;
+}
+
+std::optional<Ellipse2d> conic_ellipse(const Eigen::Matrix3d& Cstar) {
+  if (!conic_bounding_box(Cstar)) return std::nullopt;
+  const Eigen::Matrix3d C = Cstar / -Cstar(2, 2);
+  Ellipse2d e;
+  e.centre = -C.block<2, 1>(0, 2);
+  const Eigen::Matrix2d M = C.block<2, 2>(0, 0) + e.centre * e.centre.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(0.5 * (M + M.transpose()));
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues()(0) > 0.0)) return std::nullopt;
+  // Eigenvalues ascend: the larger axis is the second.
+  e.semi_axes = Eigen::Vector2d(std::sqrt(eig.eigenvalues()(1)), std::sqrt(eig.eigenvalues()(0)));
+  const Eigen::Vector2d major = eig.eigenvectors().col(1);
+  e.angle = std::atan2(major.y(), major.x());
+  return e;
 }
 
 }  // namespace dqo

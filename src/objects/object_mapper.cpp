@@ -49,6 +49,7 @@ struct ObjectMapper::Impl {
   std::map<ObjectId, uint64_t> first_sequence;  // for the candidates' age
   std::map<KeyFrameId, KeyframeRecord> keyframes;
   std::map<int, std::string> class_names;
+  std::string map_id;
 
   // The depth ellipsoid of an observation's detection, found by its box in its keyframe.
   const DualQuadric* depth_of(const ObjectObservation& o) const {
@@ -208,6 +209,11 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
   const size_t n_in = kf.detections.size();
   out.verdicts.assign(n_in, DetectionVerdict::kInvalid);
   out.object_ids.assign(n_in, 0);
+
+  std::set<ObjectId> confirmed_before;
+  for (const auto& [id, o] : objects) {
+    if (o.state == ObjectState::kConfirmed) confirmed_before.insert(id);
+  }
 
   KeyframeRecord record;
   record.camera = kf.camera;
@@ -386,6 +392,10 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     out.object_ids[static_cast<size_t>(filtered.kept[d])] = id;
   }
   out.association_ms = ms_since(t0);
+  // Confirmed here: by enough observations, or by a merge with a confirmed object.
+  for (const auto& [id, o] : objects) {
+    if (o.state == ObjectState::kConfirmed && !confirmed_before.count(id)) out.confirmed.push_back(id);
+  }
 
   // 7. Refinement of the objects seen, over every keyframe that saw them, and their boxes.
   refine_seen(seen, &out);
@@ -458,19 +468,34 @@ ObjectId ObjectMapper::next_id() const { return impl_->next_id; }
 const ObjectMapperParams& ObjectMapper::params() const { return impl_->params; }
 
 bool ObjectMapper::save_state(const std::string& path, std::string* error) const {
-  return write_state_file(path, impl_->objects, impl_->next_id, error);
+  return write_state_file(path, impl_->objects, impl_->next_id, impl_->map_id, error);
 }
 
 bool ObjectMapper::load_state(const std::string& path, std::string* error) {
   std::map<ObjectId, MapObject> loaded;
   ObjectId next = 1;
-  if (!read_state_file(path, &loaded, &next, error)) return false;
+  std::string map_id;
+  if (!read_state_file(path, &loaded, &next, &map_id, error)) return false;
+  impl_->map_id = map_id;
   // Never hand out an ID again that this mapper or the file has given.
   impl_->next_id = std::max(impl_->next_id, next);
   impl_->objects = std::move(loaded);
   impl_->first_sequence.clear();
   for (const auto& [id, o] : impl_->objects) impl_->first_sequence[id] = impl_->sequence;
   return true;
+}
+
+void ObjectMapper::set_map_id(const std::string& map_id) { impl_->map_id = map_id; }
+
+const std::string& ObjectMapper::map_id() const { return impl_->map_id; }
+
+std::vector<ObjectEvent> ObjectMapper::drop_objects() {
+  std::vector<ObjectEvent> events;
+  for (const auto& [id, o] : impl_->objects) events.push_back({ObjectEvent::Type::kRemoved, id, 0});
+  impl_->objects.clear();
+  impl_->first_sequence.clear();
+  impl_->keyframes.clear();
+  return events;
 }
 
 }  // namespace dqo::objects

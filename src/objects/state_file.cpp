@@ -32,9 +32,10 @@ bool fail(std::string* error, const std::string& message) {
 }  // namespace
 
 bool write_state_file(const std::string& path, const std::map<ObjectId, MapObject>& objects,
-                      ObjectId next_id, std::string* error) {
+                      ObjectId next_id, const std::string& map_id, std::string* error) {
+  if (map_id.find('\n') != std::string::npos) return fail(error, path + ": a map ID cannot hold a line break");
   std::ostringstream out;
-  out << kMagic << " " << kVersion << "\nnext_id " << next_id << "\n";
+  out << kMagic << " " << kVersion << "\nnext_id " << next_id << "\nmap " << map_id << "\n";
   for (const auto& [id, o] : objects) {
     const Eigen::Quaterniond q(o.quadric.rotation());
     const Eigen::Vector3d& c = o.quadric.centre();
@@ -76,8 +77,9 @@ bool write_state_file(const std::string& path, const std::map<ObjectId, MapObjec
 }
 
 bool read_state_file(const std::string& path, std::map<ObjectId, MapObject>* objects,
-                     ObjectId* next_id, std::string* error) {
+                     ObjectId* next_id, std::string* map_id, std::string* error) {
   std::ifstream in(path);
+  std::string map;
   if (!in) return fail(error, path + ": cannot open the file");
   std::map<ObjectId, MapObject> read;
   ObjectId next = 0;
@@ -106,6 +108,8 @@ bool read_state_file(const std::string& path, std::map<ObjectId, MapObject>* obj
     if (tag == "next_id") {
       if (!(s >> next) || next == 0) return fail(error, where() + "bad next_id");
       have_next = true;
+    } else if (tag == "map") {
+      map = line.size() > 4 ? line.substr(4) : std::string();
     } else if (tag == "object") {
       MapObject o;
       std::string state;
@@ -176,6 +180,7 @@ bool read_state_file(const std::string& path, std::map<ObjectId, MapObject>* obj
   }
   *objects = std::move(read);
   *next_id = next;
+  *map_id = map;
   return true;
 }
 

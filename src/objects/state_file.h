@@ -7,6 +7,7 @@
 //
 //   dqo_object_state 1
 //   next_id N
+//   map MAP_ID (rest of the line: the map the objects' poses refer to; absent in older files = "")
 //   object ID STATE CLASS HAS_QUADRIC FROM_BOXES cx cy cz qx qy qz qw a1 a2 a3 COUNT MISSED
 //          FIRST_KF LAST_KF NVOTES [CLASS VOTES]...
 //   name CLASS_NAME (rest of the line; may be empty)
@@ -18,9 +19,9 @@
 namespace dqo::objects {
 
 bool write_state_file(const std::string& path, const std::map<ObjectId, MapObject>& objects,
-                      ObjectId next_id, std::string* error);
+                      ObjectId next_id, const std::string& map_id, std::string* error);
 // On failure nothing is returned through the pointers and *error says "path:LINE: why".
 bool read_state_file(const std::string& path, std::map<ObjectId, MapObject>* objects,
-                     ObjectId* next_id, std::string* error);
+                     ObjectId* next_id, std::string* map_id, std::string* error);
 
 }  // namespace dqo::objects

@@ -1,8 +1,10 @@
 // association_node: the ROS skin of the object stage (dqo::objects::ObjectMapper). Pairs keyframes
 // with the detections of their images by stamp (dqo::objects::StampMatcher), maps raw detection
 // boxes through the camera's undistortion, feeds the mapper, and publishes objects, rviz markers,
-// object events and which detection became which object; serves list_objects; keeps the object
-// state file (IDs are never reused, also across restarts). No object maths lives here.
+// object events (CONFIRMED with a log line per object), which detection became which object and an
+// object_overlay image; serves list_objects (with the mapping nodelet's Gaussian counts from
+// mapped_objects); keeps the object state file (IDs are never reused, also across restarts; objects
+// are resumed only into the map they belong to: tracking_node's map_id). No object maths lives here.
 // Parameters: config/association.yaml (this node) and config/objects.yaml (~objects, the core's),
 // loaded by launch/association.launch.
 //
@@ -20,6 +22,8 @@
 
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <std_msgs/String.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -33,6 +37,8 @@
 
 #include "conversions.h"
 #include "dqo_map/objects/object_mapper.h"
+#include "dqo_map/objects/object_overlay.h"
+#include "dqo_map/objects/object_query.h"
 #include "dqo_map/objects/stamp_matcher.h"
 #include "object_conversions.h"
 #include "object_ros_params.h"
@@ -53,6 +59,7 @@ struct NodeParams {
   bool publish_tf = false;         // map -> object_<id> per confirmed object
   std::string output_dir;          // empty: $ROS_HOME/dqo_map, else ~/.ros/dqo_map
   std::string state_file = "objects_state.yaml";
+  bool fresh = false;              // true: resume no objects from the state file (its ID counter still)
   int queue_size = 10;
 };
 
@@ -66,19 +73,26 @@ class AssociationNode {
   void on_detections(const dqo_map::DetectionArrayConstPtr& det);
   void on_camera_info(const sensor_msgs::CameraInfoConstPtr& info);
   void on_poses(const dqo_map::KeyFramePosesConstPtr& poses);
+  void on_map_id(const std_msgs::StringConstPtr& msg);
+  void on_mapped_objects(const dqo_map::ObjectArrayConstPtr& msg);
   bool on_list(dqo_map::ListObjects::Request& req, dqo_map::ListObjects::Response& res);
   void log_reset(const std::optional<objects::StampReset>& reset, const char* stream);
   void match();
   void process(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det, const std::optional<SE3>& early_pose);
   void publish(const std_msgs::Header& header, const objects::KeyFrameAssociation& result);
+  void publish_events(const std_msgs::Header& header, const std::vector<objects::ObjectEvent>& events);
+  void publish_overlay(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det,
+                       const objects::ObjectKeyFrame& okf, const objects::KeyFrameAssociation& result, const std_msgs::Header& image_header);
+  dqo_map::Object object_msg(const objects::MapObject& o) const;
+  void save_state();
   bool throttled(const std::string& kind, double period = 5.0);
 
   ros::NodeHandle nh_, pnh_;
   NodeParams p_;
   std::unique_ptr<objects::ObjectMapper> mapper_;
   std::string state_path_;
-  ros::Subscriber kf_sub_, det_sub_, info_sub_, poses_sub_;
-  ros::Publisher objects_pub_, markers_pub_, events_pub_, kf_objects_pub_;
+  ros::Subscriber kf_sub_, det_sub_, info_sub_, poses_sub_, map_id_sub_, mapped_sub_;
+  ros::Publisher objects_pub_, markers_pub_, events_pub_, kf_objects_pub_, overlay_pub_;
   ros::ServiceServer list_srv_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
 
@@ -87,6 +101,7 @@ class AssociationNode {
   using Matcher = objects::StampMatcher<dqo_map::KeyFrameConstPtr, dqo_map::DetectionArrayConstPtr>;
   std::optional<Matcher> matcher_;  // pairs keyframes with their detections by stamp
   std::map<std::string, ros::WallTime> last_complaint_;
+  std::map<objects::ObjectId, uint32_t> num_gaussians_;  // from the mapping nodelet's mapped_objects
 };
 
 // ROS_*_THROTTLE counts in ROS time, which a looping bag sends backwards: throttle in wall time.
@@ -108,8 +123,9 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
   pnh_.param("output_dir", p_.output_dir, p_.output_dir);
   pnh_.param("state_file", p_.state_file, p_.state_file);
   pnh_.param("queue_size", p_.queue_size, p_.queue_size);
+  pnh_.param("fresh", p_.fresh, p_.fresh);
   const std::set<std::string> known = {"map_frame",  "stamp_tolerance", "buffer_seconds", "max_reorder_seconds", "detections_rectified",
-                                       "publish_tf", "output_dir",      "state_file",     "queue_size", "objects"};
+                                       "publish_tf", "output_dir",      "state_file",     "queue_size", "fresh", "objects"};
   for (const std::string& name : unknown_private_params(pnh_, known)) {
     ROS_WARN("association: ignoring unknown parameter %s/%s", pnh_.getNamespace().c_str(), name.c_str());
   }
@@ -141,8 +157,15 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
                 state_path_.c_str(), error.c_str());
       return;
     }
-    ROS_INFO("association: resumed %zu objects from %s; next object ID %llu", mapper->objects().size(),
-             state_path_.c_str(), static_cast<unsigned long long>(mapper->next_id()));
+    if (p_.fresh) {
+      const size_t dropped = mapper->drop_objects().size();
+      ROS_INFO("association: fresh start: %zu objects of %s not resumed; IDs continue from %llu", dropped,
+               state_path_.c_str(), static_cast<unsigned long long>(mapper->next_id()));
+    } else {
+      // Provisionally: the tracker's map_id decides (on_map_id) whether they belong to this map.
+      ROS_INFO("association: resumed %zu objects of map '%s' from %s; next object ID %llu", mapper->objects().size(),
+               mapper->map_id().c_str(), state_path_.c_str(), static_cast<unsigned long long>(mapper->next_id()));
+    }
   }
   mapper_ = std::move(mapper);
   matcher_.emplace(objects::StampMatcherParams{p_.stamp_tolerance, p_.buffer_seconds, p_.max_reorder_seconds});
@@ -151,10 +174,13 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
   markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>("object_markers", 10, /*latch=*/true);
   events_pub_ = nh_.advertise<dqo_map::ObjectEvent>("object_events", 100);
   kf_objects_pub_ = nh_.advertise<dqo_map::KeyFrameObjects>("keyframe_objects", 10);
+  overlay_pub_ = nh_.advertise<sensor_msgs::Image>("object_overlay", 2);
   list_srv_ = nh_.advertiseService("list_objects", &AssociationNode::on_list, this);
   kf_sub_ = nh_.subscribe("keyframes", p_.queue_size, &AssociationNode::on_keyframe, this);
   det_sub_ = nh_.subscribe("detections", 100, &AssociationNode::on_detections, this);
   poses_sub_ = nh_.subscribe("keyframe_poses", 10, &AssociationNode::on_poses, this);
+  map_id_sub_ = nh_.subscribe("map_id", 1, &AssociationNode::on_map_id, this);
+  mapped_sub_ = nh_.subscribe("mapped_objects", 1, &AssociationNode::on_mapped_objects, this);
   if (!p_.detections_rectified) info_sub_ = nh_.subscribe("rgb/camera_info", 1, &AssociationNode::on_camera_info, this);
   std_msgs::Header header;
   header.frame_id = p_.map_frame;
@@ -189,6 +215,56 @@ void AssociationNode::on_camera_info(const sensor_msgs::CameraInfoConstPtr& info
   undistorter_ = tracking::Undistorter::create(c, &error);
   if (!undistorter_) ROS_ERROR("association: cannot use camera_info (%s): %s", info_sub_.getTopic().c_str(), error.c_str());
   match();  // keyframes may have waited for it
+}
+
+// The tracker's map identity (latched, new per tracker run). Objects belong to the map they were
+// made in: for another map (a restarted tracker, whose map frame has another origin) they are
+// dropped with REMOVED events, while the ID counter goes on, so that no ID is given twice.
+void AssociationNode::on_map_id(const std_msgs::StringConstPtr& msg) {
+  if (msg->data == mapper_->map_id()) {
+    if (!mapper_->objects(true).empty()) {
+      ROS_INFO("association: map '%s' is the state's own: %zu objects resumed", msg->data.c_str(),
+               mapper_->objects().size());
+    }
+    return;
+  }
+  const std::string old = mapper_->map_id();
+  const std::vector<objects::ObjectEvent> dropped = mapper_->drop_objects();
+  mapper_->set_map_id(msg->data);
+  // Keyframes still buffered in the matcher are the new map's (they come from the new tracker run).
+  if (!dropped.empty()) {
+    ROS_WARN("association: the map is now '%s', not '%s': %zu objects of the old map not resumed; IDs continue "
+             "from %llu", msg->data.c_str(), old.c_str(), dropped.size(),
+             static_cast<unsigned long long>(mapper_->next_id()));
+  } else {
+    ROS_INFO("association: map '%s'", msg->data.c_str());
+  }
+  std_msgs::Header header;
+  header.frame_id = p_.map_frame;
+  header.stamp = ros::Time::now();
+  objects::KeyFrameAssociation removal;
+  removal.events = dropped;
+  publish(header, removal);
+  save_state();
+}
+
+void AssociationNode::on_mapped_objects(const dqo_map::ObjectArrayConstPtr& msg) {
+  num_gaussians_.clear();
+  for (const auto& o : msg->objects) num_gaussians_[o.id] = o.num_gaussians;
+}
+
+dqo_map::Object AssociationNode::object_msg(const objects::MapObject& o) const {
+  dqo_map::Object msg = to_object_msg(o);
+  const auto it = num_gaussians_.find(o.id);
+  if (it != num_gaussians_.end()) msg.num_gaussians = it->second;
+  return msg;
+}
+
+void AssociationNode::save_state() {
+  std::string error;
+  if (!mapper_->save_state(state_path_, &error) && !throttled("save")) {
+    ROS_ERROR("association: cannot write the object state %s: %s", state_path_.c_str(), error.c_str());
+  }
 }
 
 void AssociationNode::on_poses(const dqo_map::KeyFramePosesConstPtr& poses) {
@@ -284,12 +360,11 @@ void AssociationNode::process(const dqo_map::KeyFrame& kf, const dqo_map::Detect
   std_msgs::Header image_header = header;
   image_header.frame_id = kf.camera_info.header.frame_id;
   kf_objects_pub_.publish(to_keyframe_objects_msg(result, image_header, renumbered));
+  if (overlay_pub_.getNumSubscribers() > 0) publish_overlay(kf, det, okf, result, image_header);
 
   bool changed = !result.events.empty();
   for (const auto id : result.object_ids) changed = changed || id != 0;
-  if (changed && !mapper_->save_state(state_path_, &error) && !throttled("save")) {
-    ROS_ERROR("association: cannot write the object state %s: %s", state_path_.c_str(), error.c_str());
-  }
+  if (changed) save_state();
   ROS_DEBUG("association: keyframe %llu: %zu detections, %zu kept, %zu events, %.1f + %.1f ms",
             static_cast<unsigned long long>(kf.id), result.verdicts.size(), result.filtered.size(),
             result.events.size(), result.association_ms, result.refinement_ms);
@@ -301,10 +376,24 @@ void AssociationNode::publish(const std_msgs::Header& header, const objects::Key
     events_pub_.publish(to_event_msg(e, header));
     if (e.type != objects::ObjectEvent::Type::kCreated) deleted.push_back(e.id);
   }
+  // CONFIRMED after the keyframe's other events: the object is in the array published next.
+  for (const objects::ObjectId id : result.confirmed) {
+    const objects::MapObject* o = mapper_->find(id);
+    if (!o) continue;
+    dqo_map::ObjectEvent e;
+    e.header = header;
+    e.type = dqo_map::ObjectEvent::CONFIRMED;
+    e.id = id;
+    events_pub_.publish(e);
+    const dqo_map::Object m = to_object_msg(*o);
+    ROS_INFO("association: object %llu confirmed: %s, centre %.3f %.3f %.3f, semi-axes %.3f %.3f %.3f m",
+             static_cast<unsigned long long>(id), o->class_name.c_str(), m.pose.position.x, m.pose.position.y,
+             m.pose.position.z, m.semi_axes.x, m.semi_axes.y, m.semi_axes.z);
+  }
   const std::vector<objects::MapObject> confirmed = mapper_->objects();
   dqo_map::ObjectArray array;
   array.header = header;
-  for (const auto& o : confirmed) array.objects.push_back(to_object_msg(o));
+  for (const auto& o : confirmed) array.objects.push_back(object_msg(o));
   objects_pub_.publish(array);
   markers_pub_.publish(to_marker_array(confirmed, deleted, header));
   if (!p_.publish_tf) return;
@@ -318,10 +407,37 @@ void AssociationNode::publish(const std_msgs::Header& header, const objects::Key
 }
 
 bool AssociationNode::on_list(dqo_map::ListObjects::Request& req, dqo_map::ListObjects::Response& res) {
-  for (const auto& o : mapper_->objects()) {
-    if (req.class_name.empty() || o.class_name == req.class_name) res.objects.push_back(to_object_msg(o));
-  }
+  const objects::ClassQueryResult found = objects::objects_of_class(mapper_->objects(), req.class_name);
+  for (const auto& o : found.objects) res.objects.push_back(object_msg(o));
+  res.message = found.message;
   return true;
+}
+
+// The keyframe's rectified colour image with its filtered detections (each in the colour of the
+// object it became) and every object's projected conic: drawn by the core (object_overlay.h).
+void AssociationNode::publish_overlay(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& det,
+                                      const objects::ObjectKeyFrame& okf, const objects::KeyFrameAssociation& result,
+                                      const std_msgs::Header& image_header) {
+  ImageRgb8 rgb;
+  std::string error;
+  if (!from_colour_msg(kf.rgb, &rgb, &error)) {
+    if (!throttled("overlay")) ROS_WARN("association: no object_overlay for keyframe %llu: %s",
+                                        static_cast<unsigned long long>(kf.id), error.c_str());
+    return;
+  }
+  std::vector<objects::OverlayDetection> dets;
+  for (size_t k = 0; k < result.filtered.size(); ++k) {
+    objects::OverlayDetection d;
+    d.box = result.filtered[k].box;
+    d.score = result.filtered[k].score;
+    const auto source = static_cast<size_t>(result.filtered_source[k]);
+    d.class_name = source < det.detections.size() ? det.detections[source].class_name : "";
+    d.object_id = result.filtered_object_ids[k];
+    dets.push_back(d);
+  }
+  // The camera and pose the keyframe was processed with (its pose corrected by BA while it waited).
+  const ImageRgb8 overlay = objects::draw_object_overlay(rgb, okf.camera, okf.T_wc, dets, mapper_->objects());
+  overlay_pub_.publish(to_rgb8_msg(overlay, image_header));
 }
 
 }  // namespace

@@ -53,9 +53,8 @@ std::optional<SE3> CameraTf::lookup(const std::string& target, const std::string
   }
 }
 
-std::optional<geometry_msgs::TransformStamped> CameraTf::edge(const std::string& camera_frame,
-                                                              const ros::Time& stamp,
-                                                              const SE3& T_map_cam, std::string* error) {
+std::optional<std::string> CameraTf::anchor_frame(const std::string& camera_frame, const ros::Time& stamp,
+                                                  std::string* error) {
   std::string child;
   if (!options_.odom_frame.empty()) {
     child = options_.odom_frame;
@@ -83,6 +82,21 @@ std::optional<geometry_msgs::TransformStamped> CameraTf::edge(const std::string&
     }
     child = root_;
   }
+  return child;
+}
+
+std::optional<SE3> CameraTf::frame_to_camera(const std::string& frame, const std::string& camera_frame,
+                                             const ros::Time& stamp, std::string* error) const {
+  if (frame == camera_frame) return SE3::identity();
+  return lookup(frame, camera_frame, stamp, error);
+}
+
+std::optional<geometry_msgs::TransformStamped> CameraTf::edge(const std::string& camera_frame,
+                                                              const ros::Time& stamp,
+                                                              const SE3& T_map_cam, std::string* error) {
+  const std::optional<std::string> anchor = anchor_frame(camera_frame, stamp, error);
+  if (!anchor) return std::nullopt;
+  const std::string& child = *anchor;
 
   // Never a second parent: the frame we attach to map must have none other.
   std::string parent;

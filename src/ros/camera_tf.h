@@ -41,6 +41,15 @@ class CameraTf {
                                                       const ros::Time& stamp, const SE3& T_map_cam,
                                                       std::string* error);
 
+  // The frame the map edge goes to (X above), or nullopt and *error (still waiting for the tree,
+  // a configured frame that is not above the camera). tracking_node anchors its map at this frame's
+  // first pose.
+  std::optional<std::string> anchor_frame(const std::string& camera_frame, const ros::Time& stamp,
+                                          std::string* error);
+  // T_frame_cam from tf (identity when frame is the camera frame).
+  std::optional<SE3> frame_to_camera(const std::string& frame, const std::string& camera_frame,
+                                     const ros::Time& stamp, std::string* error) const;
+
   // The camera's pose T_map_cam read from tf (pose_source: tf).
   std::optional<SE3> camera_pose(const std::string& camera_frame, const ros::Time& stamp,
                                  std::string* error) const;

@@ -1,11 +1,17 @@
 // tracking_node: the ROS skin of the tracking stage (dqo::tracking::TrackingSession). Synchronises
 // colour, depth and camera_info, converts and undistorts them, tracks, and publishes mapping
-// keyframes, their bundle-adjusted poses, the path, the tracking state and tf. No tracking maths
-// lives here. Parameters and topics: README ("tracking_node"), launch/tracking.launch.
+// keyframes, their bundle-adjusted poses, the path, the tracking state, the map's identity and tf.
+// No tracking maths lives here. Parameters and topics: README ("tracking_node"), launch/tracking.launch.
+//
+// The map (REP-103, z up): anchored at the first pose of the camera's body frame (the root of its tf
+// tree, camera_base for the Azure Kinect), levelled by gravity from the `imu` topic or the floor in
+// the first frame's depth (map_level; the maths in tracking/map_levelling.h). The tracker's own frame
+// (its first camera's optical frame) goes into this map by one fixed transform, T_map_tracker.
 //
 // Bad input never stops the node: a frame it cannot use is skipped with a throttled log line that
 // says why (unsupported encoding, sizes that disagree, no depth, a camera it cannot undistort);
-// missing topics are reported from a timer; time going backwards (a looping bag) resets tracking.
+// missing topics are reported from a timer; time going backwards (a looping bag) resets tracking and
+// clears the tf buffer (replay_tf_listener.h: no TF_REPEATED_DATA flood).
 #include <algorithm>
 #include <deque>
 #include <map>
@@ -22,17 +28,20 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
 #include <std_msgs/String.h>
 #include <tf2_ros/transform_broadcaster.h>
-#include <tf2_ros/transform_listener.h>
+#include <unistd.h>
 
 #include <dqo_map/KeyFrame.h>
 #include <dqo_map/KeyFramePoses.h>
 
 #include "camera_tf.h"
 #include "conversions.h"
+#include "dqo_map/tracking/map_levelling.h"
 #include "dqo_map/tracking/tracking_session.h"
 #include "dqo_map/tracking/undistortion.h"
+#include "replay_tf_listener.h"
 #include "ros_params.h"
 
 namespace dqo::ros_bridge {
@@ -58,6 +67,11 @@ struct NodeParams {
   double min_valid_depth = 0.01;    // fraction of pixels with depth below which a frame is skipped
   int path_max_poses = 10000;
   double path_period = 0.2;         // seconds of image time between path messages
+  std::string map_level = "auto";   // auto | imu | floor | none: how the map is levelled
+  int imu_samples = 200;            // accelerometer samples averaged for gravity
+  double imu_wait = 1.0;            // auto: seconds (image time) to wait for them where imu has a publisher
+  double level_timeout = 5.0;       // seconds without a gravity estimate before the map stays unlevelled
+  double floor_max_tilt_deg = 45.0; // the floor's normal within this of the expected up
   CameraTfOptions tf;
 };
 
@@ -74,6 +88,12 @@ class TrackingNode {
                      const std::string& camera_frame);
   void publish_corrections(const ros::Time& stamp);
   void publish_state(TrackingState state);
+  void on_imu(const sensor_msgs::ImuConstPtr& imu);
+  // Decides the map's levelling (R_map_body_) from this frame; false (and why) while it must wait.
+  bool decide_levelling(const std::string& camera_frame, const ros::Time& stamp, const DepthImage& depth,
+                        std::string* why);
+  std::optional<Eigen::Vector3d> imu_up(const std::string& body, const ros::Time& stamp, std::string* error) const;
+  SE3 to_map(const SE3& T_tracker_cam) const { return T_map_tracker_ ? *T_map_tracker_ * T_tracker_cam : T_tracker_cam; }
   void check_inputs(const ros::WallTimerEvent&);
   // ROS_*_THROTTLE counts in ROS time, which a looping bag sends backwards, silencing a message
   // until the bag catches up again: complaints are throttled in wall time instead, per kind.
@@ -86,9 +106,10 @@ class TrackingNode {
   message_filters::Subscriber<sensor_msgs::Image> rgb_sub_, depth_sub_;
   message_filters::Subscriber<sensor_msgs::CameraInfo> info_sub_;
   std::unique_ptr<message_filters::Synchronizer<SyncPolicy>> sync_;
-  ros::Publisher keyframe_pub_, poses_pub_, path_pub_, state_pub_;
+  ros::Publisher keyframe_pub_, poses_pub_, path_pub_, state_pub_, map_id_pub_;
+  ros::Subscriber imu_sub_;
   tf2_ros::Buffer tf_buffer_;
-  tf2_ros::TransformListener tf_listener_;
+  std::unique_ptr<ReplayTfListener> tf_listener_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   std::unique_ptr<CameraTf> camera_tf_;
   ros::WallTimer input_timer_;
@@ -109,6 +130,16 @@ class TrackingNode {
   ros::WallTime last_rgb_, last_depth_, last_info_, last_frame_;
   std::map<std::string, ros::WallTime> last_complaint_;
   std::string tf_child_;  // the frame map's edge goes to, once known
+
+  // The map: levelling (decided once), the body frame's pose in the camera, and the tracker's frame
+  // in the map (set at the first tracked frame of each tracker run; identity with pose_source tf).
+  tracking::MapLevel level_ = tracking::MapLevel::kAuto;
+  tracking::GravityEstimator gravity_{200};
+  std::string imu_frame_;
+  ros::Time level_wait_start_;
+  std::optional<Eigen::Matrix3d> R_map_body_;
+  SE3 T_body_cam_;
+  std::optional<SE3> T_map_tracker_;
 };
 
 bool TrackingNode::throttled(const std::string& kind, double period) {
@@ -120,7 +151,9 @@ bool TrackingNode::throttled(const std::string& kind, double period) {
 }
 
 TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
-    : nh_(nh), pnh_(pnh), tf_listener_(tf_buffer_) {
+    : nh_(nh), pnh_(pnh) {
+  forward_console_bridge_to_rosconsole();
+  tf_listener_ = std::make_unique<ReplayTfListener>(tf_buffer_, ros::NodeHandle());
   pnh_.param("rgb_topic", p_.rgb_topic, p_.rgb_topic);
   pnh_.param("depth_topic", p_.depth_topic, p_.depth_topic);
   pnh_.param("camera_info_topic", p_.camera_info_topic, p_.camera_info_topic);
@@ -137,11 +170,17 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param("base_frame", p_.tf.base_frame, p_.tf.base_frame);
   pnh_.param("tf_timeout", p_.tf.timeout, p_.tf.timeout);
   pnh_.param("root_wait", p_.tf.root_wait, p_.tf.root_wait);
+  pnh_.param("map_level", p_.map_level, p_.map_level);
+  pnh_.param("imu_samples", p_.imu_samples, p_.imu_samples);
+  pnh_.param("imu_wait", p_.imu_wait, p_.imu_wait);
+  pnh_.param("level_timeout", p_.level_timeout, p_.level_timeout);
+  pnh_.param("floor_max_tilt_deg", p_.floor_max_tilt_deg, p_.floor_max_tilt_deg);
 
   const std::set<std::string> known = {
       "rgb_topic",  "depth_topic",     "camera_info_topic", "queue_size", "sync_slop",  "pose_source",
       "camera_frame", "publish_tf",    "min_valid_depth",   "path_max_poses", "path_period", "map_frame",
-      "odom_frame", "base_frame",      "tf_timeout",        "root_wait",  "tracker",    "mapping_keyframes"};
+      "odom_frame", "base_frame",      "tf_timeout",        "root_wait",  "tracker",    "mapping_keyframes",
+      "map_level",  "imu_samples",     "imu_wait",          "level_timeout", "floor_max_tilt_deg"};
   for (const std::string& name : unknown_private_params(pnh_, known)) {
     ROS_WARN("tracking: ignoring unknown parameter %s/%s", pnh_.getNamespace().c_str(), name.c_str());
   }
@@ -154,6 +193,15 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
     ROS_FATAL("tracking: queue_size must be >= 1, sync_slop and tf_timeout >= 0, min_valid_depth in [0, 1]");
     return;
   }
+  const auto level = tracking::map_level_from_string(p_.map_level);
+  if (!level || p_.imu_samples < 1 || p_.imu_wait < 0.0 || p_.level_timeout < 0.0 || !(p_.floor_max_tilt_deg > 0.0) ||
+      p_.floor_max_tilt_deg > 90.0) {
+    ROS_FATAL("tracking: map_level must be auto, imu, floor or none (not '%s'), imu_samples >= 1, imu_wait and "
+              "level_timeout >= 0, floor_max_tilt_deg in (0, 90]", p_.map_level.c_str());
+    return;
+  }
+  level_ = *level;
+  gravity_ = tracking::GravityEstimator(p_.imu_samples);
   std::string error;
   const auto config = read_tracking_config(pnh_, &error);
   if (!config) {
@@ -165,9 +213,26 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
 
   keyframe_pub_ = nh_.advertise<dqo_map::KeyFrame>("keyframes", 10);
   poses_pub_ = nh_.advertise<dqo_map::KeyFramePoses>("keyframe_poses", 10);
-  path_pub_ = nh_.advertise<nav_msgs::Path>("path", 1);
-  state_pub_ = nh_.advertise<std_msgs::String>("tracking_state", 1, /*latch=*/true);
+  path_pub_ = nh_.advertise<nav_msgs::Path>("path", 1, /*latch=*/true);
+  state_pub_ = nh_.advertise<std_msgs::String>("tracking_state", 10, /*latch=*/true);
+  map_id_pub_ = nh_.advertise<std_msgs::String>("map_id", 1, /*latch=*/true);
   path_.header.frame_id = p_.tf.map_frame;
+  // The map's identity: objects made in one map mean nothing in another. A tracker run makes a map
+  // of its own (its origin is where this run began); a map read from tf is whoever publishes it.
+  std_msgs::String map_id;
+  if (p_.pose_source == "tf") {
+    map_id.data = "tf:" + p_.tf.map_frame;
+    T_map_tracker_ = SE3::identity();
+  } else {
+    char host[64] = {0};
+    gethostname(host, sizeof(host) - 1);
+    map_id.data = "tracker:" + p_.tf.map_frame + ":" + std::string(host) + ":" + std::to_string(getpid()) + ":" +
+                  std::to_string(ros::WallTime::now().toNSec());
+    if (level_ == tracking::MapLevel::kAuto || level_ == tracking::MapLevel::kImu) {
+      imu_sub_ = nh_.subscribe("imu", 400, &TrackingNode::on_imu, this);
+    }
+  }
+  map_id_pub_.publish(map_id);
 
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
   rgb_sub_.subscribe(nh_, p_.rgb_topic, p_.queue_size, hints);
@@ -186,9 +251,93 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   input_timer_ = nh_.createWallTimer(ros::WallDuration(1.0), &TrackingNode::check_inputs, this);
   publish_state(TrackingState::kNotInitialised);
 
-  ROS_INFO("tracking: poses from %s; colour %s, depth %s, camera_info %s; keyframes on %s",
+  ROS_INFO("tracking: poses from %s; colour %s, depth %s, camera_info %s; keyframes on %s; map '%s'",
            p_.pose_source.c_str(), rgb_sub_.getTopic().c_str(), depth_sub_.getTopic().c_str(),
-           info_sub_.getTopic().c_str(), keyframe_pub_.getTopic().c_str());
+           info_sub_.getTopic().c_str(), keyframe_pub_.getTopic().c_str(), map_id.data.c_str());
+}
+
+void TrackingNode::on_imu(const sensor_msgs::ImuConstPtr& imu) {
+  if (gravity_.ready()) return;
+  if (imu_frame_.empty()) imu_frame_ = imu->header.frame_id;
+  const auto& a = imu->linear_acceleration;
+  gravity_.add(Eigen::Vector3d(a.x, a.y, a.z));
+}
+
+std::optional<Eigen::Vector3d> TrackingNode::imu_up(const std::string& body, const ros::Time& stamp,
+                                                    std::string* error) const {
+  const auto up_imu = gravity_.up();
+  if (!up_imu) {
+    if (error) *error = "the accelerometer gave no direction";
+    return std::nullopt;
+  }
+  const std::string frame = imu_frame_.empty() ? body : imu_frame_;
+  const auto T_body_imu = camera_tf_->frame_to_camera(body, frame, stamp, error);
+  if (!T_body_imu) return std::nullopt;
+  return T_body_imu->rotation() * *up_imu;
+}
+
+bool TrackingNode::decide_levelling(const std::string& camera_frame, const ros::Time& stamp, const DepthImage& depth,
+                                    std::string* why) {
+  using tracking::MapLevel;
+  const auto body = camera_tf_->anchor_frame(camera_frame, stamp, why);
+  if (!body) return false;
+  const auto T_body_cam = camera_tf_->frame_to_camera(*body, camera_frame, stamp, why);
+  if (!T_body_cam) return false;
+  if (level_wait_start_.isZero()) level_wait_start_ = stamp;
+  const bool timed_out = (stamp - level_wait_start_).toSec() >= p_.level_timeout;
+  const bool imu_expected =
+      level_ == MapLevel::kImu || (level_ == MapLevel::kAuto && imu_sub_.getNumPublishers() > 0);
+
+  std::optional<Eigen::Vector3d> up_b;
+  std::string source = "nothing (map_level none)";
+  std::string error;
+  if (level_ != MapLevel::kNone && imu_expected) {
+    if (gravity_.ready()) {
+      up_b = imu_up(*body, stamp, &error);
+      double g = 0.0;
+      gravity_.up(&g);
+      source = "the accelerometer (" + std::to_string(gravity_.count()) + " samples, " + std::to_string(g) + " m/s^2)";
+      if (up_b && std::abs(g - 9.81) > 1.0) ROS_WARN("tracking: the accelerometer's mean is %.2f m/s^2, not 9.81: was the camera moving?", g);
+    } else if (level_ == MapLevel::kImu || (stamp - level_wait_start_).toSec() < p_.imu_wait) {
+      error = "waiting for accelerometer samples on " + imu_sub_.getTopic() + " (" + std::to_string(gravity_.count()) +
+              " of " + std::to_string(p_.imu_samples) + ")";
+    }
+  }
+  const bool floor_allowed = level_ == MapLevel::kFloor || (level_ == MapLevel::kAuto && !up_b && error.empty()) ||
+                             (level_ == MapLevel::kAuto && !up_b && imu_expected && !gravity_.ready() &&
+                              (stamp - level_wait_start_).toSec() >= p_.imu_wait);
+  if (!up_b && floor_allowed) {
+    // Where the camera has a body frame above it (REP-103: z up), its z is the guess for up; a bare
+    // optical frame looks roughly level: up is its -y.
+    const Eigen::Vector3d expected_up_c = *body == camera_frame ? Eigen::Vector3d(0, -1, 0)
+                                                                : T_body_cam->inverse().rotation() * Eigen::Vector3d::UnitZ();
+    tracking::FloorParams fp;
+    fp.max_tilt_deg = p_.floor_max_tilt_deg;
+    error.clear();
+    const auto floor = tracking::find_floor(undistorter_->camera(), depth, expected_up_c, fp, &error);
+    if (floor) {
+      up_b = T_body_cam->rotation() * floor->up_c;
+      source = "the floor (" + std::to_string(floor->inliers) + " of " + std::to_string(floor->points) +
+               " depth points, camera " + std::to_string(floor->height) + " m above it)";
+    } else {
+      error = "no floor in the first frames' depth: " + error;
+    }
+  }
+  if (!up_b && level_ != MapLevel::kNone) {
+    if (!timed_out) {
+      *why = error;
+      return false;
+    }
+    ROS_WARN("tracking: the map is not levelled (%s for %.1f s, level_timeout): its z is %s's", error.c_str(),
+             p_.level_timeout, body->c_str());
+    source = "nothing";
+  }
+  R_map_body_ = up_b ? tracking::level_rotation(*up_b) : Eigen::Matrix3d::Identity();
+  T_body_cam_ = *T_body_cam;
+  const double tilt = up_b ? std::acos(std::clamp(up_b->normalized().z(), -1.0, 1.0)) * 180.0 / M_PI : 0.0;
+  ROS_INFO("tracking: map anchored at the first pose of %s, levelled by %s: %.1f degrees of tilt taken out",
+           body->c_str(), source.c_str(), tilt);
+  return true;
 }
 
 // Says which input is missing when frames stop coming (no camera_info yet, no depth, a wrong
@@ -281,6 +430,10 @@ void TrackingNode::track_frame(const ImageConstPtr& rgb_msg, const ImageConstPtr
     }
     r = session_->add_pose(stamp.toSec(), *T_map_cam);
   } else {
+    if (!R_map_body_ && !decide_levelling(camera_frame, stamp, depth, &error)) {
+      if (!throttled("level", 2.0)) ROS_INFO("tracking: map not anchored yet (%s): frame skipped", error.c_str());
+      return;
+    }
     const tracking::RgbdInput input{stamp.toSec(), &rgb, &depth};
     r = session_->track(undistorter_->camera(), input);
   }
@@ -299,7 +452,7 @@ void TrackingNode::track_frame(const ImageConstPtr& rgb_msg, const ImageConstPtr
     kf.header.stamp = stamp;
     kf.header.frame_id = p_.tf.map_frame;
     kf.id = *r.keyframe_id;
-    kf.pose = to_pose_msg(r.track.T_wc);
+    kf.pose = to_pose_msg(to_map(r.track.T_wc));
     kf.camera_info = to_camera_info_msg(undistorter_->camera(), header, "plumb_bob");
     kf.rgb = to_rgb8_msg(rgb, header);
     kf.depth = to_depth_m_msg(depth, header);
@@ -318,8 +471,18 @@ void TrackingNode::handle_result(const tracking::SessionResult& r, const std_msg
     path_.poses.clear();
     last_path_stamp_ = ros::Time();
     camera_tf_->reset();
+    tf_listener_->clear_if_ahead_of(stamp);
+    // The state went through not_initialised, even if the new run is tracking already.
+    publish_state(TrackingState::kNotInitialised);
   }
   if (r.new_camera && frames_ > 1) ROS_WARN("tracking: the camera changed: tracking restarted");
+  // A new tracker run (after a reset or for a new camera) has a frame of its own: it is anchored
+  // anew at its first tracked frame, with the same levelling.
+  if ((r.reset || r.new_camera) && p_.pose_source == "tracker") T_map_tracker_.reset();
+  if (r.track.state == TrackingState::kOk && !T_map_tracker_) {
+    T_map_tracker_ = SE3::from_rotation_translation(*R_map_body_, Eigen::Vector3d::Zero()) * T_body_cam_ *
+                     r.track.T_wc.inverse();
+  }
   if (r.state_changed) {
     switch (r.track.state) {
       case TrackingState::kOk:
@@ -359,7 +522,7 @@ void TrackingNode::handle_result(const tracking::SessionResult& r, const std_msg
 
   if (p_.publish_tf && p_.pose_source == "tracker") {
     std::string error;
-    const auto edge = camera_tf_->edge(camera_frame, stamp, r.track.T_wc, &error);
+    const auto edge = camera_tf_->edge(camera_frame, stamp, to_map(r.track.T_wc), &error);
     if (edge) {
       if (edge->child_frame_id != tf_child_) {
         ROS_INFO("tracking: publishing tf %s -> %s (so that %s -> %s is the camera pose)", edge->header.frame_id.c_str(),
@@ -375,13 +538,13 @@ void TrackingNode::handle_result(const tracking::SessionResult& r, const std_msg
   geometry_msgs::PoseStamped pose;
   pose.header.stamp = stamp;
   pose.header.frame_id = p_.tf.map_frame;
-  pose.pose = to_pose_msg(r.track.T_wc);
+  pose.pose = to_pose_msg(to_map(r.track.T_wc));
   path_.poses.push_back(pose);
   if (p_.path_max_poses > 0 && static_cast<int>(path_.poses.size()) > p_.path_max_poses) {
     path_.poses.erase(path_.poses.begin(), path_.poses.begin() + (path_.poses.size() - p_.path_max_poses));
   }
-  if (path_pub_.getNumSubscribers() > 0 &&
-      (last_path_stamp_.isZero() || (stamp - last_path_stamp_).toSec() >= p_.path_period || r.keyframe_id)) {
+  // Latched: published whether or not anyone listens now, so that rviz started later shows it.
+  if (last_path_stamp_.isZero() || (stamp - last_path_stamp_).toSec() >= p_.path_period || r.keyframe_id) {
     path_.header.stamp = stamp;
     path_pub_.publish(path_);
     last_path_stamp_ = stamp;
@@ -396,7 +559,7 @@ void TrackingNode::publish_corrections(const ros::Time& stamp) {
   msg.header.frame_id = p_.tf.map_frame;
   for (const auto& c : corrected) {
     msg.ids.push_back(c.id);
-    msg.poses.push_back(to_pose_msg(c.T_wc));
+    msg.poses.push_back(to_pose_msg(to_map(c.T_wc)));
   }
   poses_pub_.publish(msg);
 }

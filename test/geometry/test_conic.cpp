@@ -31,6 +31,41 @@ TEST(Conic, SphereOnTheOpticalAxis) {
   EXPECT_DOUBLE_EQ(pb->fraction_in_image, 1.0);
 }
 
+// The ellipse of a random object's conic: its bounding box is the conic's box (an ellipse of
+// centre c and shape M spans c ± sqrt(diag M)), and its points x satisfy xᵀ C x = 0 for the point
+// conic C = C*⁻¹.
+TEST(Conic, EllipseAgreesWithTheBoxAndThePointConic) {
+  std::mt19937_64 rng(5);
+  const PinholeCamera cam = checks::test_camera();
+  int tried = 0;
+  for (int i = 0; i < 20; ++i) {
+    const DualQuadric q = checks::random_quadric(rng);
+    checks::SyntheticView view;
+    if (!checks::random_view(rng, q, cam, checks::uniform(rng, -3.0, 3.0), 5.0, &view)) continue;
+    ++tried;
+    const Eigen::Matrix3d Cstar = project_quadric(q, cam.projection_matrix(view.T_cw));
+    const auto e = conic_ellipse(Cstar);
+    ASSERT_TRUE(e);
+    EXPECT_GE(e->semi_axes(0), e->semi_axes(1));
+    const double ca = std::cos(e->angle), sa = std::sin(e->angle);
+    const double half_w = std::hypot(e->semi_axes(0) * ca, e->semi_axes(1) * sa);
+    const double half_h = std::hypot(e->semi_axes(0) * sa, e->semi_axes(1) * ca);
+    EXPECT_NEAR(e->centre.x() - half_w, view.box.x_min, 1e-6);
+    EXPECT_NEAR(e->centre.x() + half_w, view.box.x_max, 1e-6);
+    EXPECT_NEAR(e->centre.y() - half_h, view.box.y_min, 1e-6);
+    EXPECT_NEAR(e->centre.y() + half_h, view.box.y_max, 1e-6);
+    const Eigen::Matrix3d C = Cstar.inverse();
+    for (double t = 0.0; t < 6.28; t += 0.5) {
+      const Eigen::Vector2d p = e->centre + e->semi_axes(0) * std::cos(t) * Eigen::Vector2d(ca, sa) +
+                                e->semi_axes(1) * std::sin(t) * Eigen::Vector2d(-sa, ca);
+      const Eigen::Vector3d x(p.x(), p.y(), 1.0);
+      EXPECT_NEAR(x.dot(C * x) / (C.norm() * x.squaredNorm()), 0.0, 1e-9);
+    }
+  }
+  EXPECT_GE(tried, 10);
+  EXPECT_FALSE(conic_ellipse(Eigen::Matrix3d::Constant(std::nan(""))));
+}
+
 TEST(Conic, BehindOrStraddlingTheCameraFails) {
   const PinholeCamera cam = checks::test_camera();
   const auto sphere_at = [](double z) {

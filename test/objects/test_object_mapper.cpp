@@ -197,6 +197,7 @@ TEST(ObjectMapper, LifecycleEventsAndIdsAcrossRestarts) {
   params.lifecycle.candidate_max_age_keyframes = 1000;  // removal by misses, not by age
   ObjectMapper mapper(params);
   std::vector<ObjectEvent> events;
+  std::vector<ObjectId> confirmed;
   ObjectId false_positive = 0;
   for (int k = 0; k < 8; ++k) {
     ObjectKeyFrame kf = keyframe(static_cast<KeyFrameId>(10 + k), orbit_pose(k, gt.centre(), 0.05), camera);
@@ -214,6 +215,11 @@ TEST(ObjectMapper, LifecycleEventsAndIdsAcrossRestarts) {
       false_positive = r.object_ids[1];
     }
     events.insert(events.end(), r.events.begin(), r.events.end());
+    // Confirmed once, in the keyframe after which objects() first lists it.
+    const bool listed = !mapper.objects().empty();
+    const bool listed_before = !confirmed.empty();
+    confirmed.insert(confirmed.end(), r.confirmed.begin(), r.confirmed.end());
+    EXPECT_EQ(r.confirmed.size(), listed && !listed_before ? 1u : 0u) << "keyframe " << k;
   }
   ASSERT_NE(false_positive, 0u);
   EXPECT_EQ(count_events(events, ObjectEvent::Type::kCreated), 2);
@@ -224,14 +230,17 @@ TEST(ObjectMapper, LifecycleEventsAndIdsAcrossRestarts) {
   ASSERT_EQ(mapper.objects(true).size(), 1u);
   const MapObject kept = mapper.objects()[0];
   EXPECT_EQ(kept.state, ObjectState::kConfirmed);
+  EXPECT_EQ(confirmed, std::vector<ObjectId>{kept.id}) << "the false positive is never confirmed";
 
   const std::string path = (std::filesystem::temp_directory_path() /
                             ("dqo_object_state_" + std::to_string(::getpid()) + ".txt")).string();
   std::string error;
+  mapper.set_map_id("tracker:map:run 1");
   ASSERT_TRUE(mapper.save_state(path, &error)) << error;
   EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
   ObjectMapper restarted(params);
   ASSERT_TRUE(restarted.load_state(path, &error)) << error;
+  EXPECT_EQ(restarted.map_id(), "tracker:map:run 1");
   EXPECT_EQ(restarted.next_id(), mapper.next_id());
   ASSERT_EQ(restarted.objects().size(), 1u);
   const MapObject loaded = restarted.objects()[0];
@@ -261,6 +270,19 @@ TEST(ObjectMapper, LifecycleEventsAndIdsAcrossRestarts) {
   EXPECT_FALSE(restarted.load_state(path, &error));
   EXPECT_NE(error.find(path + ":3:"), std::string::npos) << error;
   EXPECT_EQ(restarted.objects(true).size(), 2u);
+
+  // Another map: every object dropped with a REMOVED event, the ID counter kept.
+  const ObjectId next_before = restarted.next_id();
+  const std::vector<ObjectEvent> dropped = restarted.drop_objects();
+  EXPECT_EQ(dropped.size(), 2u);
+  for (const ObjectEvent& e : dropped) EXPECT_EQ(e.type, ObjectEvent::Type::kRemoved);
+  EXPECT_TRUE(restarted.objects(true).empty());
+  EXPECT_EQ(restarted.next_id(), next_before);
+  // Keyframe IDs of a new tracker run start over: accepted after the drop.
+  const KeyFrameAssociation again = restarted.process_keyframe(kf, &error);
+  EXPECT_TRUE(error.empty()) << error;
+  ASSERT_EQ(again.object_ids.size(), 1u);
+  EXPECT_EQ(again.object_ids[0], next_before);
   std::filesystem::remove(path);
 }
 

@@ -3,8 +3,11 @@
 // as one Capture per stamp, played into the nodes by hand (with /clock) so that each test can pace
 // the bag on the nodes' outputs instead of on wall time, and the /rosout lines that bad input must
 // leave. Header-only: each rostest is one executable, and these are a few lines each.
+#include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -88,6 +91,22 @@ bool wait_for(Pred pred, double seconds) {
   return pred();
 }
 
+// A share of a rostest's time limit for a run of waits (a bag played frame by frame): each wait
+// takes at most what is left, so that a slow node fails the run with its own message instead of
+// the whole test overrunning its time-limit. The bounds are summed next to the .test's time-limit.
+class Budget {
+ public:
+  explicit Budget(double seconds) : end_(ros::WallTime::now() + ros::WallDuration(seconds)), seconds_(seconds) {}
+  double left() const { return std::max(0.0, (end_ - ros::WallTime::now()).toSec()); }
+  bool expired() const { return left() <= 0.0; }
+  double take(double wanted) const { return std::min(wanted, left()); }
+  double seconds() const { return seconds_; }
+
+ private:
+  ros::WallTime end_;
+  double seconds_;
+};
+
 // The /rosout lines of the nodes whose name contains `node`: bad input must be skipped with a log
 // line, and these are the test's only view of that. on_log runs on the spinner's threads, logged()
 // on the test's: hence the lock.
@@ -99,12 +118,12 @@ class RosoutLog {
     std::lock_guard<std::mutex> lock(mutex_);
     if (log.name.find(node_) != std::string::npos) lines_.push_back(log.msg);
   }
-  bool logged(const std::string& needle) const {
+  bool logged(const std::string& needle) const { return count(needle) > 0; }
+  size_t count(const std::string& needle) const {
     std::lock_guard<std::mutex> lock(mutex_);
-    for (const auto& m : lines_) {
-      if (m.find(needle) != std::string::npos) return true;
-    }
-    return false;
+    size_t n = 0;
+    for (const auto& m : lines_) n += m.find(needle) != std::string::npos;
+    return n;
   }
 
  private:
@@ -113,12 +132,64 @@ class RosoutLog {
   std::vector<std::string> lines_;
 };
 
-// A fresh folder for one test binary's bag (the PID keeps parallel runs apart).
+// A fresh folder for one test binary's files (mkdtemp: unique, also across hosts sharing /tmp and
+// reruns with a recycled PID); the caller removes it.
 inline std::filesystem::path make_test_dir(const std::string& prefix) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / (prefix + std::to_string(getpid()));
-  std::filesystem::create_directories(dir);
-  return dir;
+  std::string pattern = (std::filesystem::temp_directory_path() / (prefix + "XXXXXX")).string();
+  if (!mkdtemp(pattern.data())) return {};
+  return pattern;
 }
+
+// A node the test starts and stops itself (to restart it with other parameters): fork + exec of
+// the binary with ROS command-line arguments (remaps, __ns, _private:=value).
+class NodeProcess {
+ public:
+  NodeProcess() = default;
+  NodeProcess(const NodeProcess&) = delete;
+  NodeProcess& operator=(const NodeProcess&) = delete;
+  ~NodeProcess() { stop(5.0); }
+
+  bool start(const std::string& binary, const std::vector<std::string>& args) {
+    std::vector<char*> argv;
+    std::vector<std::string> all = {binary};
+    all.insert(all.end(), args.begin(), args.end());
+    for (auto& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    pid_ = fork();
+    if (pid_ == 0) {
+      execv(binary.c_str(), argv.data());
+      _exit(127);
+    }
+    return pid_ > 0;
+  }
+  // SIGINT (roscpp shuts down cleanly), SIGKILL after `seconds`. Returns whether it exited in time.
+  bool stop(double seconds) {
+    if (pid_ <= 0) return true;
+    kill(pid_, SIGINT);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    int status = 0;
+    while (ros::WallTime::now() < end) {
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        return true;
+      }
+      ros::WallDuration(0.02).sleep();
+    }
+    kill(pid_, SIGKILL);
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return false;
+  }
+  bool running() {
+    if (pid_ <= 0) return false;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) pid_ = -1;
+    return pid_ > 0;
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
 
 #if defined(DQO_MAKE_SCENE) && defined(DQO_SOURCE_DIR)
 // Renders tabletop's first `frames` frames, every `every`-th, as dir/tabletop.bag (the dataset in
@@ -142,11 +213,11 @@ inline void set_clock(const ros::Publisher& clock_pub, const ros::Time& t) {
   clock_pub.publish(c);
 }
 
-// The bag's static tf at stamp t, as `rosbag play` sends it at the bag's start.
+// The bag's static tf at stamp t, as `rosbag play` sends it at the bag's start. Latched, and the
+// nodes do not depend on its arriving before the images (tracking_node waits root_wait for a tree).
 inline void publish_tf_static(const ros::Publisher& tf_static_pub, tf2_msgs::TFMessage tf_static, const ros::Time& t) {
   for (auto& tf : tf_static.transforms) tf.header.stamp = t;
   tf_static_pub.publish(tf_static);
-  ros::WallDuration(0.2).sleep();  // rosbag play, too, sends it ahead of the images
 }
 
 // A capture's camera topics (CameraInfo, depth, colour): one place, so that every test plays them

@@ -12,9 +12,19 @@
 //     keyframe_objects' arrays are parallel, name only known objects and never one object twice;
 //     list_objects (with and without a class filter) returns the published objects; the state file
 //     holds them and the next ID;
+//   - every confirmed object got one CONFIRMED event (after its CREATED) and a log line; list_objects
+//     matches classes case-insensitively and names the map's classes for an unknown one; it and the
+//     objects topic carry the Gaussian counts of the mapping nodelet's mapped_objects (published
+//     here by the test); object_overlay is the keyframe's size with the detection boxes and each
+//     object's conic centre (projected here independently) drawn in their colours;
 //   - bad input (NaN, negative and off-image boxes, a thousand detections, detections without a
 //     keyframe, a keyframe without detections, an unsupported depth encoding, time going back) is
 //     logged and skipped, and the node still answers list_objects with the same objects.
+// A second test restarts an association_node of its own (namespace /dqo_restart) against the same
+// map (objects resumed), another map (not resumed; IDs not reused) and with fresh (none resumed).
+// Waits (seconds, each with its own failure message), against association.test's time-limit of 600:
+// connect 60 + bag 150 + processed 20 + settled 10 + Gaussian counts 10 + overlay 10 + bad input 100
+// + restarts 4 x 20 + feeding 70 + listings 20 = 530, plus rendering the bag.
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -32,6 +42,7 @@
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <std_msgs/String.h>
 #include <tf2_msgs/TFMessage.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -43,6 +54,7 @@
 #include <dqo_map/ObjectEvent.h>
 
 #include "dqo_map/objects/object_mapper.h"
+#include "dqo_map/objects/object_overlay.h"
 #include "ros_test_util.h"
 
 namespace {
@@ -90,6 +102,7 @@ struct Recorder {
   std::vector<visualization_msgs::MarkerArray> markers;
   dqo::ros_test::RosoutLog log{"association"};
   std::map<std::string, geometry_msgs::TransformStamped> object_frames;  // map -> object_<id>, latest
+  std::map<double, sensor_msgs::Image> overlays;      // by stamp, the latest few
 
   void on_keyframe(const dqo_map::KeyFrame::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -110,6 +123,11 @@ struct Recorder {
   void on_markers(const visualization_msgs::MarkerArray::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(mutex);
     markers.push_back(*m);
+  }
+  void on_overlay(const sensor_msgs::Image::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    overlays[m->header.stamp.toSec()] = *m;
+    while (overlays.size() > 4) overlays.erase(overlays.begin());
   }
   void on_tf(const tf2_msgs::TFMessage::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -143,11 +161,12 @@ class AssociationNodeTest : public ::testing::Test {
     ros::NodeHandle pnh("~");
     pnh.param("frames", frames_, 40);
     pnh.param("every", every_, 5);
-    make_scene_rc_ = dqo::ros_test::render_tabletop_bag(dir_, frames_, every_, "--gt-tf");
+    make_scene_rc_ = dir_.empty() ? -1 : dqo::ros_test::render_tabletop_bag(dir_, frames_, every_, "--gt-tf");
   }
   static void TearDownTestSuite() {
     std::error_code ec;
     fs::remove_all(dir_, ec);
+    remove_state_dir();
   }
 
   void SetUp() override {
@@ -167,6 +186,8 @@ class AssociationNodeTest : public ::testing::Test {
     markers_sub_ = nh.subscribe("/dqo_map/object_markers", 100, &Recorder::on_markers, &rec_);
     log_sub_ = nh.subscribe("/rosout", 1000, &Recorder::on_log, &rec_);
     tf_sub_ = nh.subscribe("/tf", 1000, &Recorder::on_tf, &rec_);
+    overlay_sub_ = nh.subscribe("/dqo_map/object_overlay", 4, &Recorder::on_overlay, &rec_);
+    mapped_pub_ = nh.advertise<dqo_map::ObjectArray>("/dqo_map/mapped_objects", 1, /*latch=*/true);
     clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10, true);
     tf_static_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf_static", 10, true);
     tf_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf", 100);
@@ -183,17 +204,22 @@ class AssociationNodeTest : public ::testing::Test {
                  info_pub_.getNumSubscribers() >= 2 && det_pub_.getNumSubscribers() > 0 &&
                  kf_pub_.getNumSubscribers() > 0 && tf_pub_.getNumSubscribers() > 0 &&
                  kfo_sub_.getNumPublishers() > 0 && objects_sub_.getNumPublishers() > 0 &&
-                 log_sub_.getNumPublishers() > 0;
+                 log_sub_.getNumPublishers() > 0 && overlay_sub_.getNumPublishers() > 0 &&
+                 ros::service::exists("/dqo_map/list_objects", false);
         },
         60.0))
         << "tracking_node and association_node did not connect";
-    ASSERT_TRUE(ros::service::waitForService("/dqo_map/list_objects", 30000));
   }
 
   void TearDown() override {
     if (spinner_) spinner_->stop();
+  }
+  static void remove_state_dir() {
+    ros::NodeHandle pnh("~");
+    std::string state_dir;
+    pnh.param<std::string>("state_dir", state_dir, "");
     std::error_code ec;
-    if (!state_dir_.empty()) fs::remove_all(state_dir_, ec);  // the launch file's fresh state folder
+    if (!state_dir.empty()) fs::remove_all(state_dir, ec);  // the launch file's fresh state folder
   }
 
   void set_clock(const ros::Time& t) { dqo::ros_test::set_clock(clock_pub_, t); }
@@ -212,14 +238,16 @@ class AssociationNodeTest : public ::testing::Test {
 
   // The last capture again, later: releases whatever the synchroniser still holds. Waits for its
   // own result too, so that no keyframe of the bag arrives after the stamps that follow it.
-  void drain() {
-    play(dqo::ros_test::restamped(captures_.back(), captures_.back().stamp + ros::Duration(0.1)), false, 15.0);
+  void drain(double wait_s) {
+    play(dqo::ros_test::restamped(captures_.back(), captures_.back().stamp + ros::Duration(0.1)), false, wait_s);
   }
 
-  std::vector<dqo_map::Object> list(const std::string& class_name, bool* ok) {
+  std::vector<dqo_map::Object> list(const std::string& class_name, bool* ok, std::string* message = nullptr,
+                                    const std::string& service = "/dqo_map/list_objects") {
     dqo_map::ListObjects srv;
     srv.request.class_name = class_name;
-    *ok = ros::service::call("/dqo_map/list_objects", srv);
+    *ok = ros::service::call(service, srv);
+    if (message) *message = srv.response.message;
     return srv.response.objects;
   }
 
@@ -240,26 +268,76 @@ class AssociationNodeTest : public ::testing::Test {
   std::string state_dir_;
   Recorder rec_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
-  ros::Subscriber kf_sub_, kfo_sub_, objects_sub_, events_sub_, markers_sub_, log_sub_, tf_sub_;
-  ros::Publisher clock_pub_, tf_static_pub_, tf_pub_, rgb_pub_, depth_pub_, info_pub_, det_pub_, kf_pub_;
+  ros::Subscriber kf_sub_, kfo_sub_, objects_sub_, events_sub_, markers_sub_, log_sub_, tf_sub_, overlay_sub_;
+  ros::Publisher clock_pub_, tf_static_pub_, tf_pub_, rgb_pub_, depth_pub_, info_pub_, det_pub_, kf_pub_, mapped_pub_;
+  // The first test's keyframes and the bag's detections, by stamp: the restart test feeds them.
+  static std::vector<std::pair<dqo_map::KeyFrame, dqo_map::DetectionArray>> recorded_;
 };
 
 fs::path AssociationNodeTest::dir_;
 int AssociationNodeTest::make_scene_rc_ = -1;
 int AssociationNodeTest::frames_ = 0;
 int AssociationNodeTest::every_ = 0;
+std::vector<std::pair<dqo_map::KeyFrame, dqo_map::DetectionArray>> AssociationNodeTest::recorded_;
+
+// The conic centre of an object in a keyframe, projected here with Eigen alone (C* = P Q* Pᵀ; the
+// centre of a dual conic is C*₀:₂,₂ / C*₂₂), or nothing when the object is not in front.
+std::optional<Eigen::Vector2d> conic_centre(const dqo_map::Object& o, const dqo_map::KeyFrame& kf) {
+  Eigen::Matrix4d Q;
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) Q(r, c) = o.dual_quadric[4 * r + c];
+  }
+  const auto& p = kf.pose;
+  const Eigen::Quaterniond q(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z);
+  const Eigen::Matrix3d R_cw = q.toRotationMatrix().transpose();
+  const Eigen::Vector3d t_cw = -R_cw * Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
+  if ((R_cw * centre_of(o) + t_cw).z() < 0.3) return std::nullopt;
+  Eigen::Matrix3d K;
+  K << kf.camera_info.K[0], 0, kf.camera_info.K[2], 0, kf.camera_info.K[4], kf.camera_info.K[5], 0, 0, 1;
+  Eigen::Matrix<double, 3, 4> P;
+  P << R_cw, t_cw;
+  P = K * P;
+  const Eigen::Matrix3d C = P * Q * P.transpose();
+  return Eigen::Vector2d(C(0, 2) / C(2, 2), C(1, 2) / C(2, 2));
+}
+
+dqo::objects::Rgb pixel(const sensor_msgs::Image& img, int x, int y) {
+  const size_t i = static_cast<size_t>(y) * img.step + static_cast<size_t>(x) * 3;
+  return {img.data[i], img.data[i + 1], img.data[i + 2]};
+}
+
+// Whether `colour` is drawn within `r` pixels of (x, y).
+bool drawn_near(const sensor_msgs::Image& img, double x, double y, int r, const dqo::objects::Rgb& colour) {
+  const int cx = static_cast<int>(std::lround(x)), cy = static_cast<int>(std::lround(y));
+  for (int v = cy - r; v <= cy + r; ++v) {
+    for (int u = cx - r; u <= cx + r; ++u) {
+      if (u >= 0 && v >= 0 && u < static_cast<int>(img.width) && v < static_cast<int>(img.height) &&
+          pixel(img, u, v) == colour) {
+        return true;
+      }
+    }
+  }
+  return false;
+}
 
 TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
-  // ---- the bag, in order
-  for (size_t i = 0; i < captures_.size(); ++i) play(captures_[i], i == 0, 10.0);
-  drain();
+  // ---- the bag, in order (each frame waits for its keyframe_objects; 150 s for the whole bag)
+  dqo::ros_test::Budget bag(150.0);
+  for (size_t i = 0; i < captures_.size(); ++i) {
+    if (bag.expired()) {
+      ADD_FAILURE() << "the bag's " << bag.seconds() << " s ran out at frame " << i << " of " << captures_.size();
+      break;
+    }
+    play(captures_[i], i == 0, bag.take(10.0));
+  }
+  drain(bag.take(10.0));
   auto all_processed = [&] {
     for (const auto& c : captures_) {
       if (!rec_.has_kf_objects(c.stamp)) return false;
     }
     return true;
   };
-  if (!wait_for(all_processed, 60.0)) {
+  if (!wait_for(all_processed, 20.0)) {
     for (size_t i = 0; i < captures_.size(); ++i) {
       if (rec_.has_kf_objects(captures_[i].stamp)) continue;
       ADD_FAILURE() << "frame " << i << " at " << captures_[i].stamp << ": no keyframe_objects; "
@@ -276,13 +354,17 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
     const ros::Time last = rec_.kf_objects.rbegin()->second.header.stamp;
     if (rec_.arrays.back().header.stamp != last) return false;
     if (rec_.markers.back().markers.empty() || rec_.markers.back().markers.front().header.stamp != last) return false;
+    // The keyframes themselves come on another topic: they may arrive after their results.
+    for (const auto& [stamp, m] : rec_.kf_objects) {
+      if (!rec_.keyframes.count(stamp)) return false;
+    }
     for (const auto& o : rec_.arrays.back().objects) {
       const auto f = rec_.object_frames.find("object_" + std::to_string(o.id));
       if (f == rec_.object_frames.end() || f->second.header.stamp != last) return false;
     }
     return true;
   };
-  EXPECT_TRUE(wait_for(settled, 10.0)) << "objects, markers or tf of the last keyframe missing";
+  EXPECT_TRUE(wait_for(settled, 10.0)) << "objects, markers, keyframes or tf of the last keyframe missing";
 
   dqo_map::ObjectArray final_array;
   std::set<uint64_t> created, gone;
@@ -344,7 +426,7 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
       if (e.type == dqo_map::ObjectEvent::CREATED) {
         EXPECT_TRUE(created.insert(e.id).second) << "ID " << e.id << " created twice";
       }
-      if (e.type != dqo_map::ObjectEvent::CREATED) gone.insert(e.id);
+      if (e.type == dqo_map::ObjectEvent::MERGED || e.type == dqo_map::ObjectEvent::REMOVED) gone.insert(e.id);
       if (e.type == dqo_map::ObjectEvent::MERGED) {
         EXPECT_NE(e.into_id, 0u);
       }
@@ -406,7 +488,10 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
     // ---- keyframe_objects: parallel arrays, known objects, one detection per object
       for (const auto& [stamp, m] : rec_.kf_objects) {
       ASSERT_EQ(m.object_ids.size(), m.detections.detections.size()) << "keyframe " << m.keyframe_id;
-      ASSERT_TRUE(rec_.keyframes.count(stamp));
+      if (!rec_.keyframes.count(stamp)) {
+        ADD_FAILURE() << "keyframe_objects at " << stamp << " (keyframe " << m.keyframe_id << ") but no such keyframe";
+        continue;
+      }
       EXPECT_EQ(rec_.keyframes[stamp].id, m.keyframe_id);
       std::set<uint64_t> ids;
       for (const uint64_t id : m.object_ids) {
@@ -438,8 +523,31 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
       ASSERT_TRUE(ok);
       EXPECT_EQ(filtered.size(), expected);
       for (const auto& o : filtered) EXPECT_EQ(o.class_name, cls);
-      EXPECT_TRUE(list("no_such_class", &ok).empty());
+      std::string upper = cls, message;
+      std::transform(upper.begin(), upper.end(), upper.begin(), [](unsigned char c) { return std::toupper(c); });
+      EXPECT_EQ(list(upper, &ok).size(), expected) << "class names match case-insensitively";
+      EXPECT_TRUE(list("no_such_class", &ok, &message).empty());
+      EXPECT_NE(message.find("no_such_class"), std::string::npos) << message;
+      for (const auto& o : listed) EXPECT_NE(message.find(o.class_name), std::string::npos) << "'" << message << "' names no " << o.class_name;
     }
+
+    // ---- CONFIRMED: once per object that ever was in `objects`, after its CREATED, with a log line
+    std::map<uint64_t, int> confirmed_count;
+    std::set<uint64_t> created_so_far;
+    for (const auto& e : rec_.events) {
+      if (e.type == dqo_map::ObjectEvent::CREATED) created_so_far.insert(e.id);
+      if (e.type != dqo_map::ObjectEvent::CONFIRMED) continue;
+      ++confirmed_count[e.id];
+      EXPECT_TRUE(created_so_far.count(e.id)) << "object " << e.id << " confirmed before it was created";
+    }
+    for (const auto& [id, r] : runs) EXPECT_EQ(confirmed_count[id], 1) << "CONFIRMED events of object " << id;
+    for (const auto& [id, n] : confirmed_count) EXPECT_TRUE(runs.count(id)) << "object " << id << " confirmed but never published";
+    for (const auto& o : final_array.objects) {
+      EXPECT_TRUE(rec_.logged("object " + std::to_string(o.id) + " confirmed: " + o.class_name))
+          << "no log line for the confirmation of object " << o.id;
+    }
+    std::printf("[ INFO     ] %zu CREATED, %zu CONFIRMED events for %zu objects\n", created.size(), confirmed_count.size(),
+                final_array.objects.size());
 
     // ---- the state file: the same objects, and a next ID above every ID given
     if (!state_dir_.empty()) {
@@ -453,6 +561,75 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
       for (size_t i = 0; i < objs.size(); ++i) EXPECT_EQ(objs[i].id, final_array.objects[i].id);
     }
     arrays_before_bad = rec_.arrays.size();
+    recorded_.clear();
+    for (const auto& c : captures_) {
+      const auto kf = rec_.keyframes.find(c.stamp.toSec());
+      if (kf != rec_.keyframes.end()) recorded_.emplace_back(kf->second, c.detections);
+    }
+  }
+
+  // ---- object_overlay of the last keyframe: its size, and the conic centres and boxes drawn
+  {
+    ros::Time last;
+    {
+      std::lock_guard<std::mutex> lock(rec_.mutex);
+      last = rec_.kf_objects.rbegin()->second.header.stamp;
+    }
+    EXPECT_TRUE(wait_for([&] { std::lock_guard<std::mutex> l(rec_.mutex); return rec_.overlays.count(last.toSec()) > 0; }, 10.0))
+        << "no object_overlay for the last keyframe";
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    const auto ov = rec_.overlays.find(last.toSec());
+    if (ov != rec_.overlays.end()) {
+      const sensor_msgs::Image& img = ov->second;
+      const dqo_map::KeyFrame& kf = rec_.keyframes.at(last.toSec());
+      EXPECT_EQ(img.encoding, "rgb8");
+      EXPECT_EQ(img.width, kf.rgb.width);
+      EXPECT_EQ(img.height, kf.rgb.height);
+      ASSERT_EQ(img.data.size(), static_cast<size_t>(img.step) * img.height);
+      int centres = 0;
+      for (const auto& o : final_array.objects) {
+        const auto c = conic_centre(o, kf);
+        if (!c || c->x() < 0 || c->y() < 0 || c->x() >= img.width || c->y() >= img.height) continue;
+        ++centres;
+        EXPECT_TRUE(drawn_near(img, c->x(), c->y(), 2, dqo::objects::overlay_colour(o.id)))
+            << "object " << o.id << ": no dot at its conic centre " << c->transpose();
+      }
+      EXPECT_GT(centres, 0) << "no object in view of the last keyframe";
+      const auto& m = rec_.kf_objects.rbegin()->second;
+      ASSERT_FALSE(m.detections.detections.empty());
+      for (size_t k = 0; k < m.detections.detections.size(); ++k) {
+        const auto& d = m.detections.detections[k];
+        const auto colour = m.object_ids[k] ? dqo::objects::overlay_colour(m.object_ids[k]) : dqo::objects::kUnmatchedColour;
+        const double xm = 0.5 * (d.x_min + d.x_max), ym = 0.5 * (d.y_min + d.y_max);
+        // Another box or a label may cover one edge: one of the four is enough.
+        EXPECT_TRUE(drawn_near(img, d.x_min, ym, 1, colour) || drawn_near(img, d.x_max, ym, 1, colour) ||
+                    drawn_near(img, xm, d.y_min, 1, colour) || drawn_near(img, xm, d.y_max, 1, colour))
+            << "detection " << k << " (" << d.class_name << "): its box is not drawn";
+      }
+    }
+  }
+
+  // ---- Gaussian counts: the mapping nodelet's mapped_objects (published here) fill num_gaussians
+  {
+    dqo_map::ObjectArray mapped;
+    mapped.header = final_array.header;
+    for (const auto& o : final_array.objects) {
+      dqo_map::Object m;
+      m.id = o.id;
+      m.num_gaussians = static_cast<uint32_t>(1000 + o.id);
+      mapped.objects.push_back(m);
+    }
+    mapped_pub_.publish(mapped);
+    auto counted = [&] {
+      bool ok = false;
+      const auto objs = list("", &ok);
+      if (!ok || objs.empty()) return false;
+      for (const auto& o : objs) {
+        if (o.num_gaussians != 1000 + o.id) return false;
+      }
+      return true;
+    };
+    EXPECT_TRUE(wait_for(counted, 10.0)) << "list_objects does not carry mapped_objects' Gaussian counts";
   }
 
   // ---- bad input. Keyframes built from the last one, with new IDs and later stamps.
@@ -486,7 +663,7 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   bad.detections.push_back(d);
   det_pub_.publish(bad);
   kf_pub_.publish(keyframe_at(1000001, t0));
-  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t0); }, 30.0)) << "keyframe with bad boxes not processed";
+  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t0); }, 20.0)) << "keyframe with bad boxes not processed";
   EXPECT_TRUE(wait_for([&] { return rec_.logged("rejected as unusable"); }, 5.0)) << "no log line about the bad boxes";
   {
     std::lock_guard<std::mutex> l(rec_.mutex);
@@ -509,7 +686,7 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   }
   det_pub_.publish(many);
   kf_pub_.publish(keyframe_at(1000002, t1));
-  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t1); }, 60.0)) << "keyframe with 1000 detections not processed";
+  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t1); }, 30.0)) << "keyframe with 1000 detections not processed";
   {
     std::lock_guard<std::mutex> l(rec_.mutex);
     const auto& m = rec_.kf_objects[t1.toSec()];
@@ -524,13 +701,13 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   odd.depth.encoding = "yuv422";
   det_pub_.publish(detections_at(t2));
   kf_pub_.publish(odd);
-  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t2); }, 30.0));
+  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t2); }, 20.0)) << "keyframe with an unsupported depth not processed";
   EXPECT_TRUE(wait_for([&] { return rec_.logged("yuv422"); }, 5.0)) << "no log line naming the depth encoding";
   // (d) a keyframe whose detections never come, then detections of no keyframe far later: the
-  // keyframe expires with a log line, the detections are dropped.
+  // keyframe expires with a log line, the detections are dropped. In either order of arrival: a
+  // keyframe expires once a stamp buffer_seconds newer is seen on either stream (stamp_matcher.h).
   const ros::Time t3 = t2 + ros::Duration(0.1);
   kf_pub_.publish(keyframe_at(1000004, t3));
-  ros::WallDuration(0.3).sleep();
   det_pub_.publish(detections_at(t3 + ros::Duration(20.0)));
   det_pub_.publish(detections_at(t3 + ros::Duration(20.5)));
   EXPECT_TRUE(wait_for([&] { return rec_.logged("got no detections"); }, 10.0)) << "no log line about the lonely keyframe";
@@ -550,7 +727,129 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   {
     std::lock_guard<std::mutex> l(rec_.mutex);
     EXPECT_GT(rec_.arrays.size(), arrays_before_bad) << "objects are still published after bad input";
+    for (const auto& o : rec_.arrays.back().objects) {
+      if (before_ids.count(o.id)) EXPECT_EQ(o.num_gaussians, 1000 + o.id) << "objects topic: Gaussian count of " << o.id;
+    }
   }
+}
+
+// association_node restarted (its own instance in /dqo_restart, fed the first test's keyframes):
+// against the same map it resumes its objects; against another map (a new tracker run) it resumes
+// none, and the IDs it gives next are new; with fresh it resumes none either; IDs are never reused.
+TEST_F(AssociationNodeTest, RestartResumesOnlyObjectsOfItsMap) {
+  ASSERT_GE(recorded_.size(), 15u) << "needs the keyframes of ObjectsIdsOutputsAndBadInput";
+  const fs::path state_dir = dqo::ros_test::make_test_dir("dqo_association_restart_");
+  ASSERT_FALSE(state_dir.empty());
+  const std::string ns = "/dqo_restart";
+  ros::NodeHandle nh;
+  // The launch file's parameters of /dqo_map/association, for the node of this test.
+  XmlRpc::XmlRpcValue params;
+  ASSERT_TRUE(nh.getParam("/dqo_map/association", params));
+  nh.setParam(ns + "/association", params);
+  ros::Publisher map_id_pub = nh.advertise<std_msgs::String>(ns + "/map_id", 1, /*latch=*/true);
+  ros::Publisher kf_pub = nh.advertise<dqo_map::KeyFrame>(ns + "/keyframes", 20);
+  ros::Publisher det_pub = nh.advertise<dqo_map::DetectionArray>(ns + "/detections", 20);
+  ros::Publisher info_pub = nh.advertise<sensor_msgs::CameraInfo>(ns + "/rgb/camera_info", 1, /*latch=*/true);
+  std::mutex mutex;
+  std::set<double> processed;
+  std::vector<dqo_map::ObjectEvent> events;
+  ros::Subscriber kfo_sub = nh.subscribe<dqo_map::KeyFrameObjects>(ns + "/keyframe_objects", 50,
+      [&](const dqo_map::KeyFrameObjects::ConstPtr& m) { std::lock_guard<std::mutex> l(mutex); processed.insert(m->header.stamp.toSec()); });
+  ros::Subscriber events_sub = nh.subscribe<dqo_map::ObjectEvent>(ns + "/object_events", 1000,
+      [&](const dqo_map::ObjectEvent::ConstPtr& m) { std::lock_guard<std::mutex> l(mutex); events.push_back(*m); });
+  info_pub.publish(captures_.front().info);
+  auto set_map = [&](const std::string& id) {
+    std_msgs::String m;
+    m.data = id;
+    map_id_pub.publish(m);
+  };
+  const std::string service = ns + "/list_objects";
+  dqo::ros_test::NodeProcess node;
+  // Starts the node and waits (20 s) until it listens and answers.
+  auto start = [&](bool fresh) {
+    const bool started = node.start(DQO_ASSOCIATION_NODE, {"__ns:=" + ns, "__name:=association", "_output_dir:=" + state_dir.string(),
+                                                           "_publish_tf:=false", std::string("_fresh:=") + (fresh ? "true" : "false")});
+    return started && wait_for([&] {
+      return kf_pub.getNumSubscribers() > 0 && det_pub.getNumSubscribers() > 0 && map_id_pub.getNumSubscribers() > 0 &&
+             info_pub.getNumSubscribers() > 0 && kfo_sub.getNumPublishers() > 0 && ros::service::exists(service, false);
+    }, 20.0);
+  };
+  // Feeds recorded keyframes [from, to) with their detections, each waiting for its result.
+  auto feed = [&](size_t from, size_t to, double seconds) {
+    dqo::ros_test::Budget budget(seconds);
+    size_t done = 0;
+    for (size_t k = from; k < to && k < recorded_.size() && !budget.expired(); ++k) {
+      det_pub.publish(recorded_[k].second);
+      kf_pub.publish(recorded_[k].first);
+      const double t = recorded_[k].first.header.stamp.toSec();
+      done += wait_for([&] { std::lock_guard<std::mutex> l(mutex); return processed.count(t) > 0; }, budget.take(5.0));
+    }
+    return done;
+  };
+  auto ids_of = [&](bool* ok) {
+    std::set<uint64_t> ids;
+    for (const auto& o : list("", ok, nullptr, service)) ids.insert(o.id);
+    return ids;
+  };
+  bool ok = false;
+
+  // 1. Map A: objects made.
+  set_map("tracker:map:A");
+  ASSERT_TRUE(start(false)) << "association_node (map A) did not come up";
+  EXPECT_EQ(feed(0, 15, 40.0), 15u) << "keyframes processed of 15";
+  std::set<uint64_t> ids_a = ids_of(&ok);
+  ASSERT_TRUE(ok);
+  ASSERT_FALSE(ids_a.empty()) << "no object confirmed from 15 keyframes";
+  uint64_t max_id = 0;
+  {
+    std::lock_guard<std::mutex> l(mutex);
+    for (const auto& e : events) max_id = std::max(max_id, e.id);
+  }
+  EXPECT_TRUE(node.stop(10.0)) << "association_node did not stop on SIGINT";
+
+  // 2. Map A again: the same objects.
+  ASSERT_TRUE(start(false)) << "association_node (map A, restarted) did not come up";
+  EXPECT_EQ(ids_of(&ok), ids_a) << "objects of the same map not resumed";
+  EXPECT_TRUE(node.stop(10.0));
+
+  // 3. Map B (a new tracker run): none resumed, then new objects with new IDs.
+  set_map("tracker:map:B");
+  ASSERT_TRUE(start(false)) << "association_node (map B) did not come up";
+  EXPECT_TRUE(wait_for([&] { bool listed = false; return ids_of(&listed).empty() && listed; }, 10.0))
+      << "objects of map A resumed into map B";
+  {
+    std::lock_guard<std::mutex> l(mutex);
+    processed.clear();
+    events.clear();
+  }
+  EXPECT_EQ(feed(15, 30, 30.0), 15u) << "keyframes processed of 15 in map B";
+  const std::set<uint64_t> ids_b = ids_of(&ok);
+  EXPECT_FALSE(ids_b.empty()) << "no object confirmed in map B";
+  {
+    std::lock_guard<std::mutex> l(mutex);
+    for (const auto& e : events) {
+      if (e.type == dqo_map::ObjectEvent::CREATED) EXPECT_GT(e.id, max_id) << "ID " << e.id << " reused in map B";
+      max_id = std::max(max_id, e.id);
+    }
+  }
+  EXPECT_TRUE(node.stop(10.0));
+  {
+    std::ifstream state(state_dir / "objects_state.yaml");
+    std::stringstream text;
+    text << state.rdbuf();
+    EXPECT_NE(text.str().find("\nmap tracker:map:B\n"), std::string::npos) << "the state file names no map B";
+  }
+
+  // 4. fresh: none resumed (not even map B's own), and IDs still go on.
+  ASSERT_TRUE(start(true)) << "association_node (fresh) did not come up";
+  EXPECT_TRUE(ids_of(&ok).empty() && ok) << "objects resumed despite fresh";
+  EXPECT_TRUE(node.stop(10.0));
+  dqo::objects::ObjectMapper restored;
+  std::string error;
+  ASSERT_TRUE(restored.load_state((state_dir / "objects_state.yaml").string(), &error)) << error;
+  EXPECT_GT(restored.next_id(), max_id) << "the ID counter went back";
+  std::error_code ec;
+  fs::remove_all(state_dir, ec);
 }
 
 }  // namespace

@@ -2,13 +2,23 @@
 // (tabletop, 40 frames, every 3rd: sensor noise on, 3.6 degrees between frames), plays it into the
 // node frame by frame (each frame waits for the node's tf of that stamp, so nothing is dropped on a
 // slow machine), and checks:
+//   - the map is z up: the bag's camera looks down at the table (its body frame, camera_base, is
+//     pitched about 21 degrees) and the test rolls camera_base a further 15 degrees (through the
+//     static tf), yet the map's z agrees with the ground truth's up and its x with camera_base's
+//     first heading, within 2 degrees (levelled by the floor: the bag has no imu);
 //   - keyframes arrive, stamped with their images' stamps, with rectified pinhole images and poses
 //     within 2 cm of the ground truth (after aligning the first keyframe);
 //   - tf: every frame has a single parent, the node attached map to the root of the camera's tree
 //     (camera_base), and map -> rgb_camera_link through tf equals the keyframe poses;
+//   - the map_id (latched) is this run's; the path is latched (a late subscriber gets it);
 //   - bad input leaves the node running: an unknown encoding and a depth image of NaNs are skipped
-//     with a log line each; time going backwards (the bag looping) resets it, and keyframes keep
-//     coming with IDs that are never reused.
+//     with a log line each (and no tf); the bag replayed without --clock (image time goes back, ROS
+//     time does not) resets it: tracking_state goes through not_initialised, keyframes keep coming
+//     with IDs that are never reused, and no TF_REPEATED_DATA reaches the node's log.
+// Waits (seconds, each with its own failure message), against tracking.test's time-limit of 300:
+// connect 30 + bag 90 + map_id 5 + path 10 + bad input 2 x 15 + replay 40 + state 10 + probe 15
+// = 230, plus rendering the bag.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -23,6 +33,7 @@
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <nav_msgs/Path.h>
 #include <std_msgs/String.h>
 #include <tf2/buffer_core.h>
 #include <tf2_msgs/TFMessage.h>
@@ -58,7 +69,9 @@ struct Recorder {
   std::map<std::string, std::set<std::string>> parents;     // child -> every parent seen
   std::set<double> tf_stamps;                               // stamps of map -> * edges
   dqo::ros_test::RosoutLog log{"tracking"};
-  std::string state;
+  std::vector<std::string> states;  // every tracking_state, in order
+  std::string map_id;
+  std::vector<nav_msgs::Path> paths;
 
   void on_keyframe(const dqo_map::KeyFrame::ConstPtr& kf) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -75,7 +88,15 @@ struct Recorder {
   void on_log(const rosgraph_msgs::Log::ConstPtr& line) { log.on_log(*line); }
   void on_state(const std_msgs::String::ConstPtr& s) {
     std::lock_guard<std::mutex> lock(mutex);
-    state = s->data;
+    states.push_back(s->data);
+  }
+  void on_map_id(const std_msgs::String::ConstPtr& s) {
+    std::lock_guard<std::mutex> lock(mutex);
+    map_id = s->data;
+  }
+  void on_path(const nav_msgs::Path::ConstPtr& p) {
+    std::lock_guard<std::mutex> lock(mutex);
+    paths.push_back(*p);
   }
   bool saw_tf_at(const ros::Time& t) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -93,7 +114,7 @@ class TrackingNodeTest : public ::testing::Test {
   static void SetUpTestSuite() {
     // One bag for all tests: rendered once.
     dir_ = dqo::ros_test::make_test_dir("dqo_tracking_test_");
-    make_scene_rc_ = dqo::ros_test::render_tabletop_bag(dir_, 40, 3, "");
+    make_scene_rc_ = dir_.empty() ? -1 : dqo::ros_test::render_tabletop_bag(dir_, 40, 3, "");
   }
   static void TearDownTestSuite() {
     std::error_code ec;
@@ -105,6 +126,21 @@ class TrackingNodeTest : public ::testing::Test {
     captures_ = dqo::ros_test::read_captures((dir_ / "tabletop.bag").string(), &tf_static_);
     ASSERT_EQ(captures_.size(), 40u);
     ASSERT_FALSE(tf_static_.transforms.empty());
+    // Roll camera_base about the colour camera's optical axis (the camera's own pose, the ground
+    // truth, stays): the body frame the map is anchored at is then pitched and rolled.
+    for (auto& t : tf_static_.transforms) {
+      if (t.child_frame_id != "rgb_camera_link") continue;
+      const dqo::SE3 roll(Eigen::Quaterniond(Eigen::AngleAxisd(kRollDeg * M_PI / 180.0, Eigen::Vector3d::UnitZ())),
+                          Eigen::Vector3d::Zero());
+      const dqo::SE3 T_base_cam = to_se3(t.transform) * roll;
+      t.transform.rotation.w = T_base_cam.quaternion().w();
+      t.transform.rotation.x = T_base_cam.quaternion().x();
+      t.transform.rotation.y = T_base_cam.quaternion().y();
+      t.transform.rotation.z = T_base_cam.quaternion().z();
+      T_base_cam_ = T_base_cam;
+      rolled_ = true;
+    }
+    ASSERT_TRUE(rolled_) << "the bag has no static camera_base -> rgb_camera_link";
     std::string error;
     const auto gt = dqo::read_tum_trajectory((dir_ / "data" / "groundtruth.txt").string(), &error);
     ASSERT_TRUE(gt) << error;
@@ -118,7 +154,8 @@ class TrackingNodeTest : public ::testing::Test {
     tf_sub_ = nh.subscribe("/tf", 1000, &Recorder::on_tf, &rec_);
     tf_static_sub_ = nh.subscribe("/tf_static", 100, &Recorder::on_tf, &rec_);
     log_sub_ = nh.subscribe("/rosout", 1000, &Recorder::on_log, &rec_);
-    state_sub_ = nh.subscribe("/dqo_map/tracking_state", 10, &Recorder::on_state, &rec_);
+    state_sub_ = nh.subscribe("/dqo_map/tracking_state", 100, &Recorder::on_state, &rec_);
+    map_id_sub_ = nh.subscribe("/dqo_map/map_id", 10, &Recorder::on_map_id, &rec_);
     clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10, true);
     tf_static_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf_static", 10, true);
     rgb_pub_ = nh.advertise<sensor_msgs::Image>("/rgb/image_raw", 10);
@@ -151,10 +188,12 @@ class TrackingNodeTest : public ::testing::Test {
     return wait_for([&] { return rec_.saw_tf_at(c.stamp); }, wait_s);
   }
 
-  // Sends the remaining frames so the synchroniser releases the last one, then lets BA settle.
-  void drain(const ros::Time& after) {
-    set_clock(after + ros::Duration(1.0));
-    ros::WallDuration(0.5).sleep();
+  // Publishes a capture without /clock (as `rosbag play` without --clock: ROS time goes on while
+  // image time jumps back) and waits for the node's map edge of that stamp.
+  bool play_at(const Capture& c, const ros::Time& clock, double wait_s) {
+    set_clock(clock);
+    dqo::ros_test::publish_camera(c, info_pub_, depth_pub_, rgb_pub_);
+    return wait_for([&] { return rec_.saw_tf_at(c.stamp); }, wait_s);
   }
 
   const dqo::SE3* gt_at(const ros::Time& t) const {
@@ -162,14 +201,17 @@ class TrackingNodeTest : public ::testing::Test {
     return it == gt_.end() ? nullptr : &it->second;
   }
 
+  static constexpr double kRollDeg = 15.0;
   static fs::path dir_;
   static int make_scene_rc_;
+  bool rolled_ = false;
+  dqo::SE3 T_base_cam_;  // the (rolled) static camera_base -> rgb_camera_link
   std::vector<Capture> captures_;
   tf2_msgs::TFMessage tf_static_;
   std::map<long, dqo::SE3> gt_;  // ground truth by bag stamp in microseconds
   Recorder rec_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
-  ros::Subscriber keyframe_sub_, tf_sub_, tf_static_sub_, log_sub_, state_sub_;
+  ros::Subscriber keyframe_sub_, tf_sub_, tf_static_sub_, log_sub_, state_sub_, map_id_sub_;
   ros::Publisher clock_pub_, tf_static_pub_, rgb_pub_, depth_pub_, info_pub_;
 };
 
@@ -177,19 +219,52 @@ fs::path TrackingNodeTest::dir_;
 int TrackingNodeTest::make_scene_rc_ = -1;
 
 TEST_F(TrackingNodeTest, KeyframesTfAndBadInput) {
-  // ---- the bag, in order
+  // ---- the bag, in order (each frame waits for its tf; 90 s for the whole bag)
   int tracked = 0;
-  for (size_t i = 0; i < captures_.size(); ++i) tracked += play(captures_[i], i == 0) ? 1 : 0;
-  drain(captures_.back().stamp);
+  dqo::ros_test::Budget bag(90.0);
+  for (size_t i = 0; i < captures_.size(); ++i) {
+    if (bag.expired()) {
+      ADD_FAILURE() << "the bag's " << bag.seconds() << " s ran out at frame " << i << " of " << captures_.size();
+      break;
+    }
+    tracked += play(captures_[i], i == 0, bag.take(5.0)) ? 1 : 0;
+  }
   EXPECT_GE(tracked, 38) << "frames the node published tf for";
+  // The last frame's keyframe (if it is one) may arrive after its tf: the frames' stamps say which
+  // keyframes to read, so nothing below depends on that order.
 
   std::vector<dqo_map::KeyFrame> keyframes;
   {
     std::lock_guard<std::mutex> lock(rec_.mutex);
     keyframes = rec_.keyframes;
-    EXPECT_EQ(rec_.state, "ok");  // tracking::to_string(TrackingState::kOk)
+    ASSERT_FALSE(rec_.states.empty()) << "no tracking_state";
+    EXPECT_EQ(rec_.states.back(), "ok");  // tracking::to_string(TrackingState::kOk)
   }
   ASSERT_GE(keyframes.size(), 5u);
+
+  // ---- the map is z up and keeps camera_base's first heading
+  {
+    const dqo::SE3* gt_first = gt_at(keyframes.front().header.stamp);
+    ASSERT_TRUE(gt_first);
+    const Eigen::Matrix3d R_world_map = gt_first->rotation() * to_se3(keyframes.front().pose).rotation().transpose();
+    const Eigen::Vector3d map_z = R_world_map * Eigen::Vector3d::UnitZ();
+    const double up_deg = std::acos(std::min(1.0, map_z.z())) * 180.0 / M_PI;
+    EXPECT_LT(up_deg, 2.0) << "the map's z is " << up_deg << " degrees from the ground truth's up";
+    const Eigen::Vector3d body_x = gt_first->rotation() * T_base_cam_.rotation().transpose() * Eigen::Vector3d::UnitX();
+    const Eigen::Vector3d heading = Eigen::Vector3d(body_x.x(), body_x.y(), 0.0).normalized();
+    const double heading_deg = std::acos(std::min(1.0, heading.dot(R_world_map * Eigen::Vector3d::UnitX()))) * 180.0 / M_PI;
+    EXPECT_LT(heading_deg, 2.0) << "the map's x is " << heading_deg << " degrees from camera_base's first heading";
+    const Eigen::Vector3d body_z = gt_first->rotation() * T_base_cam_.rotation().transpose() * Eigen::Vector3d::UnitZ();
+    std::printf("[ INFO     ] camera_base tilted %.1f deg from up; map z %.2f deg from up, x %.2f deg from its heading\n",
+                std::acos(body_z.z()) * 180.0 / M_PI, up_deg, heading_deg);
+  }
+  // ---- map_id (latched): this tracker run's own
+  EXPECT_TRUE(wait_for([&] { std::lock_guard<std::mutex> l(rec_.mutex); return !rec_.map_id.empty(); }, 5.0))
+      << "no map_id";
+  {
+    std::lock_guard<std::mutex> l(rec_.mutex);
+    EXPECT_EQ(rec_.map_id.rfind("tracker:map:", 0), 0u) << rec_.map_id;
+  }
 
   std::set<double> image_stamps;
   for (const auto& c : captures_) image_stamps.insert(c.stamp.toSec());
@@ -244,11 +319,29 @@ TEST_F(TrackingNodeTest, KeyframesTfAndBadInput) {
     }
   }
 
-  // ---- bad input: an unknown encoding, depth of NaNs. Skipped, logged, the node lives on.
+  // ---- the path is latched: a subscriber that comes now gets it
+  {
+    ros::NodeHandle nh;
+    ros::Subscriber path_sub = nh.subscribe("/dqo_map/path", 10, &Recorder::on_path, &rec_);
+    EXPECT_TRUE(wait_for([&] { std::lock_guard<std::mutex> l(rec_.mutex); return !rec_.paths.empty(); }, 10.0))
+        << "a late subscriber got no path: not latched";
+    std::lock_guard<std::mutex> l(rec_.mutex);
+    if (!rec_.paths.empty()) {
+      const nav_msgs::Path& path = rec_.paths.back();
+      EXPECT_EQ(path.header.frame_id, "map");
+      ASSERT_FALSE(path.poses.empty());
+      const auto& first = path.poses.front();
+      EXPECT_EQ(first.header.stamp, keyframes.front().header.stamp);
+      EXPECT_LT((to_se3(first.pose).translation() - to_se3(keyframes.front().pose).translation()).norm(), 1e-9);
+    }
+  }
+
+  // ---- bad input: an unknown encoding, depth of NaNs. Skipped, logged, the node lives on. That no
+  // tf comes for them is checked after a good frame that follows: the node takes frames in order.
   Capture bad = dqo::ros_test::restamped(captures_.back(), captures_.back().stamp + ros::Duration(0.1));
   bad.rgb.encoding = "yuv422";
-  EXPECT_FALSE(play(bad, false, 1.0));
-  EXPECT_TRUE(wait_for([&] { return rec_.logged("yuv422"); }, 5.0)) << "no log line naming the encoding";
+  play(bad, false, 0.0);
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("yuv422"); }, 15.0)) << "no log line naming the encoding";
 
   Capture nan_depth = dqo::ros_test::restamped(captures_.back(), bad.stamp + ros::Duration(0.1));
   nan_depth.depth.encoding = "32FC1";
@@ -258,26 +351,66 @@ TEST_F(TrackingNodeTest, KeyframesTfAndBadInput) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     std::memcpy(&nan_depth.depth.data[i], &nan, 4);
   }
-  EXPECT_FALSE(play(nan_depth, false, 1.0));
-  EXPECT_TRUE(wait_for([&] { return rec_.logged("have depth"); }, 5.0)) << "no log line about missing depth";
+  play(nan_depth, false, 0.0);
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("have depth"); }, 15.0)) << "no log line about missing depth";
 
-  // ---- time goes back: the bag loops. The node restarts and keyframes keep coming.
-  const size_t before = rec_.num_keyframes();
+  // ---- the bag replayed without --clock: image time goes back, ROS time goes on. The node
+  // restarts, its state passes through not_initialised, keyframes keep coming, and its tf listener
+  // hears its own edges at the replayed stamps without TF_REPEATED_DATA. 40 s for the 6 frames.
   {
     std::lock_guard<std::mutex> lock(rec_.mutex);
     rec_.tf_stamps.clear();  // the replayed stamps were seen before: wait for new edges
   }
-  for (size_t i = 0; i < 6; ++i) EXPECT_TRUE(play(captures_[i], i == 0)) << "frame " << i << " after the loop";
-  drain(captures_[5].stamp);
+  const ros::Time clock0 = captures_.back().stamp + ros::Duration(10.0);
+  dqo::ros_test::Budget replay(40.0);
+  for (size_t i = 0; i < 6 && !replay.expired(); ++i) {
+    EXPECT_TRUE(play_at(captures_[i], clock0 + ros::Duration(0.1 * i), replay.take(10.0))) << "frame " << i << " of the replay";
+  }
+  EXPECT_FALSE(replay.expired()) << "the replay's " << replay.seconds() << " s ran out";
+  EXPECT_FALSE(rec_.saw_tf_at(bad.stamp)) << "a tf for the frame with an unknown encoding";
+  EXPECT_FALSE(rec_.saw_tf_at(nan_depth.stamp)) << "a tf for the frame without depth";
   EXPECT_TRUE(rec_.logged("time went back")) << "no log line about the time jump";
+  auto went_through_reset = [&] {
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    const auto ok = std::find(rec_.states.begin(), rec_.states.end(), "ok");
+    const auto reset = std::find(ok, rec_.states.end(), "not_initialised");
+    return reset != rec_.states.end() && std::find(reset, rec_.states.end(), "ok") != rec_.states.end();
+  };
+  EXPECT_TRUE(wait_for(went_through_reset, 10.0)) << "tracking_state did not go ok -> not_initialised -> ok through the reset";
+  EXPECT_TRUE(wait_for([&] {
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    for (const auto& kf : rec_.keyframes) {
+      if (kf.header.stamp == captures_[0].stamp && kf.id > last_id) return true;
+    }
+    return false;
+  }, 5.0)) << "the first frame after the reset did not become a keyframe with a new ID";
   {
     std::lock_guard<std::mutex> lock(rec_.mutex);
-    ASSERT_GT(rec_.keyframes.size(), before);
-    const auto& first_after = rec_.keyframes[before];
-    EXPECT_EQ(first_after.header.stamp, captures_[0].stamp) << "the first frame after a reset is a keyframe";
-    EXPECT_GT(first_after.id, last_id) << "keyframe IDs are never reused";
+    std::set<uint64_t> ids;
+    for (const auto& kf : rec_.keyframes) EXPECT_TRUE(ids.insert(kf.id).second) << "keyframe ID " << kf.id << " reused";
     for (const auto& [child, parents] : rec_.parents) EXPECT_EQ(parents.size(), 1u) << child;
   }
+  // A probe: a transform sent twice with one stamp must give TF_REPEATED_DATA in the node's log (so
+  // that the check below can fail), and the node handles /tf in order, so once the probe's line is
+  // there, every earlier edge has been handled.
+  {
+    ros::NodeHandle nh;
+    ros::Publisher tf_pub = nh.advertise<tf2_msgs::TFMessage>("/tf", 10);
+    // This test's own /tf subscriber and the node's listener.
+    ASSERT_TRUE(wait_for([&] { return tf_pub.getNumSubscribers() >= 2; }, 5.0)) << "the node does not listen to /tf";
+    tf2_msgs::TFMessage probe;
+    probe.transforms.resize(1);
+    probe.transforms[0].header.frame_id = "dqo_probe_parent";
+    probe.transforms[0].child_frame_id = "dqo_probe";
+    probe.transforms[0].header.stamp = captures_[5].stamp;
+    probe.transforms[0].transform.rotation.w = 1.0;
+    tf_pub.publish(probe);
+    tf_pub.publish(probe);
+    EXPECT_TRUE(wait_for([&] { return rec_.logged("TF_REPEATED_DATA"); }, 10.0))
+        << "the probe's repeated transform left no TF_REPEATED_DATA in the node's log";
+  }
+  EXPECT_EQ(rec_.log.count("TF_REPEATED_DATA"), rec_.log.count("dqo_probe"))
+      << "TF_REPEATED_DATA for the node's own transforms after the replay";
 }
 
 }  // namespace

@@ -30,6 +30,19 @@ std::optional<Box2d> conic_bounding_box(const Eigen::Matrix3d& Cstar);
 // (third row of R_cw) and S the shape matrix, the smallest depth is z_c(centre) − sqrt(r₃ᵀ S r₃).
 bool in_front_of_camera(const DualQuadric& quadric, const SE3& T_cw, double near = 0.0);
 
+// The ellipse of a dual conic, as drawing libraries take it (cv::ellipse: centre, semi-axes, angle).
+// With C* scaled to C*₂₂ = −1 an ellipse of centre c and shape M (points x with
+// (x − c)ᵀ M⁻¹ (x − c) = 1) is C* = [[M − c cᵀ, −c], [−cᵀ, −1]] (the 2D analogue of the dual
+// quadric), so c = −C*₀:₂,₂ and M = C*₀:₂,₀:₂ + c cᵀ, whose eigen-decomposition gives the axes.
+struct Ellipse2d {
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();      // pixels
+  Eigen::Vector2d semi_axes = Eigen::Vector2d::Zero();   // pixels, the first the larger
+  double angle = 0.0;  // radians from the image's +x axis to the first semi-axis (towards +y)
+};
+// nullopt where conic_bounding_box has none (not an ellipse in front of the camera) or M is not
+// positive definite.
+std::optional<Ellipse2d> conic_ellipse(const Eigen::Matrix3d& Cstar);
+
 struct ProjectedBox {
   Box2d box;                       // clipped to the image; empty when wholly outside it
   Box2d unclipped;                 // the conic's box

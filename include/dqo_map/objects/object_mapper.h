@@ -53,6 +53,14 @@ class ObjectMapper {
   bool save_state(const std::string& path, std::string* error) const;
   bool load_state(const std::string& path, std::string* error);
 
+  // The map the objects' poses refer to (the tracker's map identity; "" = unknown), kept in the
+  // state file: objects of one map mean nothing in another (another tracker run, another origin).
+  void set_map_id(const std::string& map_id);
+  const std::string& map_id() const;
+  // Forgets every object (confirmed or candidate) and the keyframes, keeping the next ID so that no
+  // ID is given twice: for a map that is not the objects' own. A REMOVED event per object dropped.
+  std::vector<ObjectEvent> drop_objects();
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;

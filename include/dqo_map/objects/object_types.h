@@ -99,6 +99,9 @@ struct KeyFrameAssociation {
   std::vector<int> filtered_source;            // [filtered] -> input index
   std::vector<ObjectId> filtered_object_ids;   // [filtered]
   std::vector<ObjectEvent> events;             // in the order they happened
+  // Objects confirmed by this keyframe (candidates before it, confirmed after it and still in the
+  // map), by ascending ID: what a user waits for, apart from CREATED (which every candidate gets).
+  std::vector<ObjectId> confirmed;
   double association_ms = 0.0;                 // filter + visibility + association + merge + init
   double refinement_ms = 0.0;                  // IoU refinement of the objects seen
   double box_fit_ms = 0.0;                     // box fits of the objects seen
