@@ -1,7 +1,9 @@
 // The rosbag written from a synthetic scene holds what the Azure Kinect driver records: its topics,
 // encodings and frame, one stamp per capture, the static camera_base -> rgb_camera_link tf, and
 // detections under the image's stamp. Read back with the rosbag API.
+#include <algorithm>
 #include <cmath>
+#include <unistd.h>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -15,6 +17,7 @@
 
 #include <dqo_map/DetectionArray.h>
 
+#include "dqo_map/common/mask_detections.h"
 #include "dqo_map/ros/kinect_bag_writer.h"
 #include "dqo_map/sim/renderer.h"
 #include "dqo_map/sim/scene_loader.h"
@@ -71,7 +74,7 @@ TEST(KinectBag, HoldsTheDriverLayout) {
         uint16_t mm;
         std::memcpy(&mm, &img->data[2 * i], 2);
         const float z = f.depth.data[i];
-        const long expected = (std::isfinite(z) && z > 0.f) ? std::lround(z * 1000.f) : 0;
+        const long expected = (std::isfinite(z) && z > 0.f) ? std::lround(static_cast<double>(z) * 1000.0) : 0;
         ASSERT_EQ(mm, expected) << "pixel " << i;
       }
       stamps[topic].push_back(img->header.stamp);
@@ -119,6 +122,51 @@ TEST(KinectBag, HoldsTheDriverLayout) {
     EXPECT_NEAR(rgb[i].toSec(), 1000.0 + frames[i].timestamp, 1e-6);
   for (int i = 1; i < kFrames; ++i) EXPECT_LT(rgb[i - 1], rgb[i]);
   bag.close();
+  std::filesystem::remove(path);
+}
+
+TEST(KinectBag, DetectionsCarryTheInstanceMasksWhenAsked) {
+  // As a segmenting detector publishes them: mono16, value k+1 = detection k, the frame's own size.
+  std::string error;
+  const auto scene =
+      dqo::sim::load_scene(std::string(DQO_SOURCE_DIR) + "/config/scenes/tiny.yaml", nullptr, &error);
+  ASSERT_TRUE(scene) << error;
+  const dqo::sim::Renderer renderer(*scene, 2);
+  const auto path = std::filesystem::temp_directory_path() / ("dqo_test_kinect_masks_" + std::to_string(getpid()) + ".bag");
+  std::vector<dqo::Frame> frames;
+  for (const bool masks : {false, true}) {
+    dqo::ros_bridge::KinectBagOptions options;
+    options.instance_masks = masks;
+    auto writer = dqo::ros_bridge::KinectBagWriter::open(path.string(), renderer.info(), options, &error);
+    ASSERT_TRUE(writer) << error;
+    frames = {renderer.render(0, false), renderer.render(1, false)};
+    for (const auto& f : frames) ASSERT_TRUE(writer->write(f, &error)) << error;
+    writer->close();
+    rosbag::Bag bag(path.string(), rosbag::bagmode::Read);
+    size_t k = 0, with_detections = 0;
+    for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery("/detections"))) {
+      auto det = m.instantiate<dqo_map::DetectionArray>();
+      ASSERT_TRUE(det);
+      const dqo::Frame& f = frames.at(k++);
+      if (!masks) {
+        EXPECT_EQ(det->instance.width, 0u) << "no masks unless asked";
+        continue;
+      }
+      if (f.detections.empty()) continue;
+      ++with_detections;
+      ASSERT_EQ(det->instance.encoding, "mono16");
+      ASSERT_EQ(det->instance.width, static_cast<uint32_t>(f.instance.width));
+      ASSERT_EQ(det->instance.height, static_cast<uint32_t>(f.instance.height));
+      const dqo::InstanceImage expected = dqo::instance_for_detections(f.instance, f.detections);
+      std::vector<uint16_t> got(expected.data.size());
+      ASSERT_EQ(det->instance.data.size(), 2 * got.size());
+      std::memcpy(got.data(), det->instance.data.data(), det->instance.data.size());
+      EXPECT_EQ(got, expected.data);
+      EXPECT_GT(std::count_if(got.begin(), got.end(), [](uint16_t v) { return v != 0; }), 0);
+    }
+    EXPECT_EQ(k, frames.size());
+    if (masks) EXPECT_GT(with_detections, 0u);
+  }
   std::filesystem::remove(path);
 }
 

@@ -270,23 +270,5 @@ TEST(OfflinePipeline, ExportObjectWritesUnderTheOutputFolderOnly) {
   std::filesystem::remove_all(pattern);
 }
 
-TEST(OfflinePipeline, InstanceImageForDetections) {
-  // Two objects; detection 0 names object 7 by its gt_id, detection 1 has none and takes the ID
-  // with most pixels in its box (5); where both claim pixels the higher score wins.
-  InstanceImage gt(6, 2, 1, 0);
-  gt.data = {7, 7, 7, 5, 5, 0,  //
-             7, 7, 5, 5, 5, 0};
-  std::vector<Detection2d> d(2);
-  d[0].gt_id = 7;
-  d[0].score = 0.9f;
-  d[0].box = {-0.5, -0.5, 2.5, 1.5};
-  d[1].score = 0.5f;
-  d[1].box = {1.5, -0.5, 4.5, 1.5};
-  const InstanceImage out = instance_for_detections(gt, d);
-  const std::vector<uint16_t> expected = {1, 1, 1, 2, 2, 0,  //
-                                          1, 1, 2, 2, 2, 0};
-  EXPECT_EQ(out.data, expected);
-}
-
 }  // namespace
 }  // namespace dqo::system
