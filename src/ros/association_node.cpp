@@ -141,11 +141,7 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
     ROS_FATAL("association: %s", error.c_str());
     return;
   }
-  if (p_.output_dir.empty()) {
-    const char* ros_home = std::getenv("ROS_HOME");
-    const char* home = std::getenv("HOME");
-    p_.output_dir = ros_home ? std::string(ros_home) + "/dqo_map" : std::string(home ? home : ".") + "/.ros/dqo_map";
-  }
+  if (p_.output_dir.empty()) p_.output_dir = default_output_dir();
   std::error_code ec;
   fs::create_directories(p_.output_dir, ec);
   state_path_ = (fs::path(p_.output_dir) / p_.state_file).string();

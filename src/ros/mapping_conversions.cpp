@@ -138,19 +138,9 @@ dqo_map::Object to_object_msg(const mapping::ObjectSummary& summary) {
   if (!summary.known) return msg;
   msg.class_id = r.class_id;
   msg.class_name = r.class_name;
-  const DualQuadric& q = r.quadric;
-  msg.pose = to_pose_msg(SE3::from_rotation_translation(q.rotation(), q.centre()));
-  msg.semi_axes.x = q.semi_axes().x();
-  msg.semi_axes.y = q.semi_axes().y();
-  msg.semi_axes.z = q.semi_axes().z();
-  const Eigen::Matrix4d Q = q.matrix();
-  for (int i = 0; i < 16; ++i) msg.dual_quadric[i] = Q(i / 4, i % 4);
+  set_object_geometry(r.quadric, r.box, &msg);
   msg.observations = static_cast<uint32_t>(std::max(0, r.observations));
   msg.confidence = static_cast<float>(r.confidence);
-  msg.box_pose = to_pose_msg(SE3::from_rotation_translation(r.box.rotation, r.box.centre));
-  msg.box_half_extents.x = r.box.half_extents.x();
-  msg.box_half_extents.y = r.box.half_extents.y();
-  msg.box_half_extents.z = r.box.half_extents.z();
   return msg;
 }
 

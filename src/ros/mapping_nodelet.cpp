@@ -200,11 +200,7 @@ bool MappingNodelet::read_params(std::string* error) {
                                                    /*positions=*/false);
   if (!params) return false;
   mapper_params_ = *params;
-  if (p_.output_dir.empty()) {
-    const char* ros_home = std::getenv("ROS_HOME");
-    const char* home = std::getenv("HOME");
-    p_.output_dir = ros_home ? std::string(ros_home) + "/dqo_map" : std::string(home ? home : ".") + "/.ros/dqo_map";
-  }
+  if (p_.output_dir.empty()) p_.output_dir = dqo::ros_bridge::default_output_dir();
   std::error_code ec;
   fs::create_directories(p_.output_dir, ec);
   if (ec || !fs::is_directory(p_.output_dir)) {

@@ -10,31 +10,34 @@
 
 namespace dqo::ros_bridge {
 
+void set_object_geometry(const DualQuadric& q, const OrientedBox& box, dqo_map::Object* msg) {
+  msg->pose = to_pose_msg(SE3::from_rotation_translation(q.rotation(), q.centre()));
+  msg->semi_axes.x = q.semi_axes().x();
+  msg->semi_axes.y = q.semi_axes().y();
+  msg->semi_axes.z = q.semi_axes().z();
+  const Eigen::Matrix4d Q = q.matrix();
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) msg->dual_quadric[4 * r + c] = Q(r, c);
+  }
+  msg->box_pose = to_pose_msg(SE3::from_rotation_translation(box.rotation, box.centre));
+  msg->box_half_extents.x = box.half_extents.x();
+  msg->box_half_extents.y = box.half_extents.y();
+  msg->box_half_extents.z = box.half_extents.z();
+}
+
 dqo_map::Object to_object_msg(const objects::MapObject& object) {
   dqo_map::Object msg;
   msg.id = object.id;
   msg.class_id = object.class_id;
   msg.class_name = object.class_name;
   const DualQuadric& q = object.quadric;
-  msg.pose = to_pose_msg(SE3::from_rotation_translation(q.rotation(), q.centre()));
-  msg.semi_axes.x = q.semi_axes().x();
-  msg.semi_axes.y = q.semi_axes().y();
-  msg.semi_axes.z = q.semi_axes().z();
-  const Eigen::Matrix4d Q = q.matrix();
-  for (int r = 0; r < 4; ++r) {
-    for (int c = 0; c < 4; ++c) msg.dual_quadric[4 * r + c] = Q(r, c);
-  }
+  // The box the meshes are cut to (the mapping nodelet's, as the offline runner's records): the
+  // fitted one where there is one.
+  set_object_geometry(q, object.has_box ? object.box : OrientedBox{q.centre(), q.rotation(), q.semi_axes()}, &msg);
   // observation_count also counts observations from before a restart and of merged pieces.
   msg.observations = static_cast<uint32_t>(std::max<size_t>(object.observation_count, object.observations.size()));
   msg.confidence = static_cast<float>(object.confidence);
   msg.num_gaussians = 0;
-  // The box the meshes are cut to (the mapping nodelet's, as the offline runner's records): the
-  // fitted one where there is one.
-  const OrientedBox box = object.has_box ? object.box : OrientedBox{q.centre(), q.rotation(), q.semi_axes()};
-  msg.box_pose = to_pose_msg(SE3::from_rotation_translation(box.rotation, box.centre));
-  msg.box_half_extents.x = box.half_extents.x();
-  msg.box_half_extents.y = box.half_extents.y();
-  msg.box_half_extents.z = box.half_extents.z();
   return msg;
 }
 

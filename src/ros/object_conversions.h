@@ -25,6 +25,9 @@ namespace dqo::ros_bridge {
 // order, dual_quadric = Q* normalised to Q*(3,3) = -1, row-major. num_gaussians stays 0: the
 // mapping nodelet owns the Gaussians.
 dqo_map::Object to_object_msg(const objects::MapObject& object);
+// The geometry fields of an Object message (pose, semi_axes, dual_quadric, box_pose,
+// box_half_extents): one place for the object stage's objects and the mapping nodelet's.
+void set_object_geometry(const DualQuadric& quadric, const OrientedBox& box, dqo_map::Object* msg);
 dqo_map::ObjectEvent to_event_msg(const objects::ObjectEvent& event, const std_msgs::Header& header);
 
 // Field copies; NaN or inverted boxes pass through unchanged (the core's filter gives the verdict).

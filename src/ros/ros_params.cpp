@@ -1,5 +1,6 @@
 #include "ros_params.h"
 
+#include <cstdlib>
 #include <charconv>
 #include <cstdio>
 #include <sstream>
@@ -93,6 +94,12 @@ std::optional<tracking::TrackingConfig> read_tracking_config(const ros::NodeHand
   text += "}";
   return tracking::parse_tracking_config(text, "ROS parameters of " + private_nh.getNamespace(), error,
                                          {}, /*positions=*/false);
+}
+
+std::string default_output_dir() {
+  const char* ros_home = std::getenv("ROS_HOME");
+  const char* home = std::getenv("HOME");
+  return ros_home ? std::string(ros_home) + "/dqo_map" : std::string(home ? home : ".") + "/.ros/dqo_map";
 }
 
 std::set<std::string> unknown_private_params(const ros::NodeHandle& private_nh,

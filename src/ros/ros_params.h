@@ -22,6 +22,10 @@ std::string to_yaml(const XmlRpc::XmlRpcValue& value);
 std::optional<tracking::TrackingConfig> read_tracking_config(const ros::NodeHandle& private_nh,
                                                              std::string* error);
 
+// Where a node keeps its files when its output_dir parameter is empty: $ROS_HOME/dqo_map, else
+// ~/.ros/dqo_map (ROS's own log folder rule).
+std::string default_output_dir();
+
 // Private parameters of the node that are neither in `known` nor under one of its sections
 // (e.g. "tracker/..."), for a warning about misspelt names.
 std::set<std::string> unknown_private_params(const ros::NodeHandle& private_nh,
