@@ -229,4 +229,30 @@ inline void publish_camera(const Capture& c, const ros::Publisher& info_pub, con
   rgb_pub.publish(c.rgb);
 }
 
+
+// The publishers of what `rosbag play` of a dqo_make_scene bag sends, and one capture sent as the
+// bag sends it (clock, the static tf with the first, tf, detections, camera): one place, so that
+// every test plays captures alike.
+struct CapturePublishers {
+  ros::Publisher clock, tf_static, tf, rgb, depth, info, det;
+
+  void advertise(ros::NodeHandle& nh, uint32_t detections_queue = 100) {
+    clock = nh.advertise<rosgraph_msgs::Clock>("/clock", 10, true);
+    tf_static = nh.advertise<tf2_msgs::TFMessage>("/tf_static", 10, true);
+    tf = nh.advertise<tf2_msgs::TFMessage>("/tf", 100);
+    rgb = nh.advertise<sensor_msgs::Image>("/rgb/image_raw", 10);
+    depth = nh.advertise<sensor_msgs::Image>("/depth_to_rgb/image_raw", 10);
+    info = nh.advertise<sensor_msgs::CameraInfo>("/rgb/camera_info", 10);
+    det = nh.advertise<dqo_map::DetectionArray>("/detections", detections_queue);
+  }
+  // `tf_static`: the bag's static tf, sent first (the first capture); nullptr: not sent.
+  void publish(const Capture& c, const tf2_msgs::TFMessage* static_tf) const {
+    set_clock(clock, c.stamp);
+    if (static_tf) publish_tf_static(tf_static, *static_tf, c.stamp);
+    tf.publish(c.tf);
+    det.publish(c.detections);
+    publish_camera(c, info, depth, rgb);
+  }
+};
+
 }  // namespace dqo::ros_test

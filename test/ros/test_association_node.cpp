@@ -188,21 +188,15 @@ class AssociationNodeTest : public ::testing::Test {
     tf_sub_ = nh.subscribe("/tf", 1000, &Recorder::on_tf, &rec_);
     overlay_sub_ = nh.subscribe("/dqo_map/object_overlay", 4, &Recorder::on_overlay, &rec_);
     mapped_pub_ = nh.advertise<dqo_map::ObjectArray>("/dqo_map/mapped_objects", 1, /*latch=*/true);
-    clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10, true);
-    tf_static_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf_static", 10, true);
-    tf_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf", 100);
-    rgb_pub_ = nh.advertise<sensor_msgs::Image>("/rgb/image_raw", 10);
-    depth_pub_ = nh.advertise<sensor_msgs::Image>("/depth_to_rgb/image_raw", 10);
-    info_pub_ = nh.advertise<sensor_msgs::CameraInfo>("/rgb/camera_info", 10);
-    det_pub_ = nh.advertise<dqo_map::DetectionArray>("/detections", 1100);
+    pub_.advertise(nh, 1100);
     kf_pub_ = nh.advertise<dqo_map::KeyFrame>("/dqo_map/keyframes", 10);
     spinner_ = std::make_unique<ros::AsyncSpinner>(2);
     spinner_->start();
     ASSERT_TRUE(wait_for(
         [&] {
-          return rgb_pub_.getNumSubscribers() > 0 && depth_pub_.getNumSubscribers() > 0 &&
-                 info_pub_.getNumSubscribers() >= 2 && det_pub_.getNumSubscribers() > 0 &&
-                 kf_pub_.getNumSubscribers() > 0 && tf_pub_.getNumSubscribers() > 0 &&
+          return pub_.rgb.getNumSubscribers() > 0 && pub_.depth.getNumSubscribers() > 0 &&
+                 pub_.info.getNumSubscribers() >= 2 && pub_.det.getNumSubscribers() > 0 &&
+                 kf_pub_.getNumSubscribers() > 0 && pub_.tf.getNumSubscribers() > 0 &&
                  kfo_sub_.getNumPublishers() > 0 && objects_sub_.getNumPublishers() > 0 &&
                  log_sub_.getNumPublishers() > 0 && overlay_sub_.getNumPublishers() > 0 &&
                  ros::service::exists("/dqo_map/list_objects", false);
@@ -222,17 +216,13 @@ class AssociationNodeTest : public ::testing::Test {
     if (!state_dir.empty()) fs::remove_all(state_dir, ec);  // the launch file's fresh state folder
   }
 
-  void set_clock(const ros::Time& t) { dqo::ros_test::set_clock(clock_pub_, t); }
+  void set_clock(const ros::Time& t) { dqo::ros_test::set_clock(pub_.clock, t); }
 
   // One capture as the bag holds it; returns once association_node has published its
   // keyframe_objects (every frame is a keyframe in this test: see association.test), or after
   // wait_s: tracking_node's synchroniser may hold a frame back until the next one arrives.
   bool play(const Capture& c, bool with_static, double wait_s) {
-    set_clock(c.stamp);
-    if (with_static) dqo::ros_test::publish_tf_static(tf_static_pub_, tf_static_, c.stamp);
-    tf_pub_.publish(c.tf);
-    det_pub_.publish(c.detections);
-    dqo::ros_test::publish_camera(c, info_pub_, depth_pub_, rgb_pub_);
+    pub_.publish(c, with_static ? &tf_static_ : nullptr);
     return wait_for([&] { return rec_.has_kf_objects(c.stamp); }, wait_s);
   }
 
@@ -269,7 +259,8 @@ class AssociationNodeTest : public ::testing::Test {
   Recorder rec_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
   ros::Subscriber kf_sub_, kfo_sub_, objects_sub_, events_sub_, markers_sub_, log_sub_, tf_sub_, overlay_sub_;
-  ros::Publisher clock_pub_, tf_static_pub_, tf_pub_, rgb_pub_, depth_pub_, info_pub_, det_pub_, kf_pub_, mapped_pub_;
+  dqo::ros_test::CapturePublishers pub_;
+  ros::Publisher kf_pub_, mapped_pub_;
   // The first test's keyframes and the bag's detections, by stamp: the restart test feeds them.
   static std::vector<std::pair<dqo_map::KeyFrame, dqo_map::DetectionArray>> recorded_;
 };
@@ -661,7 +652,7 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   bad.detections.push_back(d);
   d.x_min = 5000, d.y_min = 5000, d.x_max = 5100, d.y_max = 5100;
   bad.detections.push_back(d);
-  det_pub_.publish(bad);
+  pub_.det.publish(bad);
   kf_pub_.publish(keyframe_at(1000001, t0));
   EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t0); }, 20.0)) << "keyframe with bad boxes not processed";
   EXPECT_TRUE(wait_for([&] { return rec_.logged("rejected as unusable"); }, 5.0)) << "no log line about the bad boxes";
@@ -684,7 +675,7 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
     d.score = 0.5f;
     many.detections.push_back(d);
   }
-  det_pub_.publish(many);
+  pub_.det.publish(many);
   kf_pub_.publish(keyframe_at(1000002, t1));
   EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t1); }, 30.0)) << "keyframe with 1000 detections not processed";
   {
@@ -699,7 +690,7 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   const ros::Time t2 = t1 + ros::Duration(0.1);
   dqo_map::KeyFrame odd = keyframe_at(1000003, t2);
   odd.depth.encoding = "yuv422";
-  det_pub_.publish(detections_at(t2));
+  pub_.det.publish(detections_at(t2));
   kf_pub_.publish(odd);
   EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t2); }, 20.0)) << "keyframe with an unsupported depth not processed";
   EXPECT_TRUE(wait_for([&] { return rec_.logged("yuv422"); }, 5.0)) << "no log line naming the depth encoding";
@@ -708,12 +699,12 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   // keyframe expires once a stamp buffer_seconds newer is seen on either stream (stamp_matcher.h).
   const ros::Time t3 = t2 + ros::Duration(0.1);
   kf_pub_.publish(keyframe_at(1000004, t3));
-  det_pub_.publish(detections_at(t3 + ros::Duration(20.0)));
-  det_pub_.publish(detections_at(t3 + ros::Duration(20.5)));
+  pub_.det.publish(detections_at(t3 + ros::Duration(20.0)));
+  pub_.det.publish(detections_at(t3 + ros::Duration(20.5)));
   EXPECT_TRUE(wait_for([&] { return rec_.logged("got no detections"); }, 10.0)) << "no log line about the lonely keyframe";
   EXPECT_FALSE(rec_.has_kf_objects(t3));
   // (e) time goes back (a looping bag): buffers cleared, logged
-  det_pub_.publish(detections_at(captures_.front().stamp));
+  pub_.det.publish(detections_at(captures_.front().stamp));
   EXPECT_TRUE(wait_for([&] { return rec_.logged("time went back"); }, 10.0)) << "no log line about the time jump";
 
   // ---- still alive, and bad input made no confirmed object

@@ -128,21 +128,15 @@ class MappingNodeTest : public ::testing::Test {
     map_dir_ = fs::path(work_dir_) / "map";
     diag_sub_ = nh.subscribe("/diagnostics", 100, &Diagnostics::on_msg, &diag_);
     kfo_sub_ = nh.subscribe("/dqo_map/keyframe_objects", 100, &MappingNodeTest::on_kf_objects, this);
-    clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10, true);
-    tf_static_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf_static", 10, true);
-    tf_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf", 100);
-    rgb_pub_ = nh.advertise<sensor_msgs::Image>("/rgb/image_raw", 10);
-    depth_pub_ = nh.advertise<sensor_msgs::Image>("/depth_to_rgb/image_raw", 10);
-    info_pub_ = nh.advertise<sensor_msgs::CameraInfo>("/rgb/camera_info", 10);
-    det_pub_ = nh.advertise<dqo_map::DetectionArray>("/detections", 100);
+    pub_.advertise(nh, 100);
     burst_kf_pub_ = nh.advertise<dqo_map::KeyFrame>("/test/burst/keyframes", 100);
     burst_kfo_pub_ = nh.advertise<dqo_map::KeyFrameObjects>("/test/burst/keyframe_objects", 100);
     spinner_ = std::make_unique<ros::AsyncSpinner>(2);
     spinner_->start();
     ASSERT_TRUE(wait_for(
         [&] {
-          return rgb_pub_.getNumSubscribers() > 0 && depth_pub_.getNumSubscribers() > 0 &&
-                 det_pub_.getNumSubscribers() > 0 && tf_pub_.getNumSubscribers() > 0 &&
+          return pub_.rgb.getNumSubscribers() > 0 && pub_.depth.getNumSubscribers() > 0 &&
+                 pub_.det.getNumSubscribers() > 0 && pub_.tf.getNumSubscribers() > 0 &&
                  kfo_sub_.getNumPublishers() > 0 && diag_.count(kMapping) > 0;
         },
         90.0))
@@ -166,11 +160,7 @@ class MappingNodeTest : public ::testing::Test {
   // One capture as the bag holds it; waits until the association node answered for it (the
   // tracking node's synchroniser may hold a frame until the next one comes: then up to wait_s).
   bool play(const Capture& c, bool with_static, double wait_s) {
-    dqo::ros_test::set_clock(clock_pub_, c.stamp);
-    if (with_static) dqo::ros_test::publish_tf_static(tf_static_pub_, tf_static_, c.stamp);
-    tf_pub_.publish(c.tf);
-    det_pub_.publish(c.detections);
-    dqo::ros_test::publish_camera(c, info_pub_, depth_pub_, rgb_pub_);
+    pub_.publish(c, with_static ? &tf_static_ : nullptr);
     return wait_for([&] { return has_kf_objects(c.stamp); }, wait_s);
   }
 
@@ -209,7 +199,7 @@ class MappingNodeTest : public ::testing::Test {
   std::mutex mutex_;
   std::set<ros::Time> kf_objects_stamps_;
   ros::Subscriber diag_sub_, kfo_sub_;
-  ros::Publisher clock_pub_, tf_static_pub_, tf_pub_, rgb_pub_, depth_pub_, info_pub_, det_pub_;
+  dqo::ros_test::CapturePublishers pub_;
   ros::Publisher burst_kf_pub_, burst_kfo_pub_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
 };
@@ -457,11 +447,11 @@ TEST_F(MappingNodeTest, WithoutCameraInfoNothingIsMappedAndTheNodesLive) {
   const double received = diag_.value(kMapping, "keyframes received");
   for (int k = 0; k < 3; ++k) {
     const Capture c = dqo::ros_test::restamped(captures_[k], later_stamp(captures_));
-    dqo::ros_test::set_clock(clock_pub_, c.stamp);
-    tf_pub_.publish(c.tf);
-    det_pub_.publish(c.detections);
-    depth_pub_.publish(c.depth);  // colour and depth, no camera_info
-    rgb_pub_.publish(c.rgb);
+    dqo::ros_test::set_clock(pub_.clock, c.stamp);
+    pub_.tf.publish(c.tf);
+    pub_.det.publish(c.detections);
+    pub_.depth.publish(c.depth);  // colour and depth, no camera_info
+    pub_.rgb.publish(c.rgb);
     ros::WallDuration(0.3).sleep();
   }
   ros::WallDuration(2.0).sleep();
@@ -479,9 +469,9 @@ TEST_F(MappingNodeTest, KeyframesWhoseDetectionsNeverComeAreMappedAsBackground) 
   const double gaussians = diag_.value(kMapping, "gaussians");
   for (int k = 0; k < 3; ++k) {
     Capture c = dqo::ros_test::restamped(captures_[k + 4], later_stamp(captures_));
-    dqo::ros_test::set_clock(clock_pub_, c.stamp);
-    tf_pub_.publish(c.tf);  // no detections
-    dqo::ros_test::publish_camera(c, info_pub_, depth_pub_, rgb_pub_);
+    dqo::ros_test::set_clock(pub_.clock, c.stamp);
+    pub_.tf.publish(c.tf);  // no detections
+    dqo::ros_test::publish_camera(c, pub_.info, pub_.depth, pub_.rgb);
     ros::WallDuration(0.3).sleep();
   }
   // The last frame is held by the tracker's synchroniser; the two before it become keyframes whose
