@@ -74,17 +74,6 @@ class CpuRenderState final : public RenderState {
   std::vector<SurfaceAccum<S>> surface;  // [P] with settings.surface_depth only
 };
 
-template <typename S>
-CameraView<S> make_camera_view(const PinholeCamera& camera, const SE3& T_cw, float near) {
-  CameraView<S> view;
-  view.K = {S(camera.fx), S(camera.fy), S(camera.cx), S(camera.cy), camera.width, camera.height};
-  const Eigen::Matrix3d R = T_cw.rotation();
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) view.R_cw.m[i][j] = S(R(i, j));
-  view.t_cw = {S(T_cw.translation().x()), S(T_cw.translation().y()), S(T_cw.translation().z())};
-  view.near = S(near);
-  return view;
-}
 
 // Stage entry points (explicitly instantiated for float and double in their files).
 template <typename S>

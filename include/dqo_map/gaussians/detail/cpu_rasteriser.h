@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 
+#include "dqo_map/gaussians/math/project_gaussian.h"
 #include "dqo_map/gaussians/rasteriser.h"
 
 namespace dqo::gs::detail {
@@ -86,5 +87,18 @@ extern template void cpu_backward<double>(const GaussianArrays<double>&, const P
                                           const SE3&, const RenderSettings&, int,
                                           const RenderState&, const ImageGradients<double>&,
                                           const AttributeGradients<double>&);
+
+// The camera as the per-Gaussian maths take it (both rasterisers).
+template <typename S>
+CameraView<S> make_camera_view(const PinholeCamera& camera, const SE3& T_cw, float near) {
+  CameraView<S> view;
+  view.K = {S(camera.fx), S(camera.fy), S(camera.cx), S(camera.cy), camera.width, camera.height};
+  const Eigen::Matrix3d R = T_cw.rotation();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) view.R_cw.m[i][j] = S(R(i, j));
+  view.t_cw = {S(T_cw.translation().x()), S(T_cw.translation().y()), S(T_cw.translation().z())};
+  view.near = S(near);
+  return view;
+}
 
 }  // namespace dqo::gs::detail

@@ -17,6 +17,7 @@
 // No std:: containers, no exceptions, no Eigen here: nvcc compiles these headers unchanged.
 
 #include <math.h>
+#include <string.h>
 
 #include "dqo_map/common/host_device.h"
 
@@ -50,7 +51,35 @@ struct Mat3 {
 
 // ---------------------------------------------------------------- scalar functions
 // Overloads pick the float or double C function, which exist on host and device alike.
-DQO_HD float hd_exp(float x) { return expf(x); }
+// exp in float is our own, evaluated by the same operations on host and device: CUDA's expf and
+// the C library's differ in the last bit, and that moves pixels across the α ≥ 1/255 and
+// transmittance cut-offs between the CPU reference and the kernels (a Gaussian in on one side, out
+// on the other: differences of 4e-4 where the tests allow 1e-4). Cody–Waite reduction
+// x = k ln2 + r, |r| ≤ ln2/2, a degree-7 polynomial for e^r (error about 1 ulp), times 2^k made
+// from the exponent bits. Bit-identical on both sides as long as neither contracts a·b + c into an
+// FMA (the CUDA ring compiles its kernels with -fmad=false; x86-64 g++ without -march has no FMA).
+DQO_HD float hd_exp(float x) {
+  if (!(x >= -87.0f)) return 0.0f;  // below the normal range (and NaN): the callers need "tiny"
+  if (x > 88.0f) x = 88.0f;         // keeps 2^k finite; no caller comes near
+  const float k = floorf(x * 1.44269504f + 0.5f);
+  const float r = (x - k * 0.693145752f) - k * 1.42860677e-06f;
+  float p = 1.98412698e-4f;  // 1/7!
+  p = p * r + 1.38888889e-3f;
+  p = p * r + 8.33333333e-3f;
+  p = p * r + 4.16666667e-2f;
+  p = p * r + 1.66666667e-1f;
+  p = p * r + 0.5f;
+  p = p * r + 1.0f;
+  p = p * r + 1.0f;
+  const unsigned int bits = static_cast<unsigned int>(static_cast<int>(k) + 127) << 23;
+#ifdef __CUDA_ARCH__
+  const float scale = __uint_as_float(bits);
+#else
+  float scale;
+  memcpy(&scale, &bits, sizeof scale);
+#endif
+  return p * scale;
+}
 DQO_HD double hd_exp(double x) { return exp(x); }
 DQO_HD float hd_log(float x) { return logf(x); }
 DQO_HD double hd_log(double x) { return log(x); }

@@ -1,0 +1,88 @@
+// Stage 2 of the CUDA rasteriser: each Gaussian's tiles as (tile, depth) keys, radix-sorted (CUB),
+// then each tile's range of the sorted list. A tile's Gaussians come out in depth order with ties by
+// index, as the CPU reference orders them (src/gaussians/raster_binning.cpp): depths are positive
+// floats, whose bits sort as unsigned integers, and the sort is stable over pairs written in index
+// order.
+
+#include <cub/cub.cuh>
+
+#include "raster_cuda.h"
+
+namespace dqo::cuda::detail {
+
+namespace {
+
+__global__ void emit_keys_kernel(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
+                                 int tiles_x, uint64_t* keys, uint32_t* values) {
+  const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (i >= n) return;
+  const uint32_t begin = offsets[i], end = offsets[i + 1];
+  if (begin == end) return;
+  const TileRect t = rects[i];
+  const uint64_t depth_bits = __float_as_uint(splats[i].depth);
+  uint32_t k = begin;
+  for (int ty = t.y0; ty <= t.y1; ++ty) {
+    for (int tx = t.x0; tx <= t.x1; ++tx, ++k) {
+      keys[k] = (static_cast<uint64_t>(ty * tiles_x + tx) << 32) | depth_bits;
+      values[k] = static_cast<uint32_t>(i);
+    }
+  }
+}
+
+__global__ void tile_ranges_kernel(size_t pairs, const uint64_t* keys, uint2* ranges) {
+  const size_t k = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k >= pairs) return;
+  const uint32_t tile = static_cast<uint32_t>(keys[k] >> 32);
+  if (k == 0 || static_cast<uint32_t>(keys[k - 1] >> 32) != tile) ranges[tile].x = static_cast<uint32_t>(k);
+  if (k + 1 == pairs || static_cast<uint32_t>(keys[k + 1] >> 32) != tile) ranges[tile].y = static_cast<uint32_t>(k + 1);
+}
+
+// Grows *temp to `bytes` (device memory kept between calls: no allocation per frame once warm).
+void ensure(void** temp, size_t* temp_bytes, size_t bytes) {
+  if (bytes <= *temp_bytes) return;
+  if (*temp) cudaFree(*temp);
+  *temp = nullptr;
+  *temp_bytes = 0;
+  if (cudaMalloc(temp, bytes) == cudaSuccess) *temp_bytes = bytes;
+}
+
+}  // namespace
+
+void exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offsets, void** temp, size_t* temp_bytes,
+                    cudaStream_t stream) {
+  // Scans n + 1 entries: tile_count[n] is 0 (the caller's), so offsets[n] is the total.
+  size_t bytes = 0;
+  cub::DeviceScan::ExclusiveSum(nullptr, bytes, tile_count, offsets, static_cast<int>(n + 1), stream);
+  ensure(temp, temp_bytes, bytes);
+  cub::DeviceScan::ExclusiveSum(*temp, bytes, tile_count, offsets, static_cast<int>(n + 1), stream);
+}
+
+void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
+                      int tiles_x, uint64_t* keys, uint32_t* values, cudaStream_t stream) {
+  if (n == 0) return;
+  constexpr int kBlock = 256;
+  emit_keys_kernel<<<static_cast<unsigned>((n + kBlock - 1) / kBlock), kBlock, 0, stream>>>(
+      n, splats, rects, offsets, tiles_x, keys, values);
+}
+
+void sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out, const uint32_t* values_in,
+                uint32_t* values_out, void** temp, size_t* temp_bytes, cudaStream_t stream) {
+  if (pairs == 0) return;
+  // Only the bits in use: 32 of depth and as many of tile as there are tiles.
+  const int end_bit = 32 + tile_bits;
+  size_t bytes = 0;
+  cub::DeviceRadixSort::SortPairs(nullptr, bytes, keys_in, keys_out, values_in, values_out,
+                                  static_cast<int>(pairs), 0, end_bit, stream);
+  ensure(temp, temp_bytes, bytes);
+  cub::DeviceRadixSort::SortPairs(*temp, bytes, keys_in, keys_out, values_in, values_out,
+                                  static_cast<int>(pairs), 0, end_bit, stream);
+}
+
+void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, uint2* ranges, cudaStream_t stream) {
+  if (pairs == 0) return;
+  constexpr int kBlock = 256;
+  tile_ranges_kernel<<<static_cast<unsigned>((pairs + kBlock - 1) / kBlock), kBlock, 0, stream>>>(
+      pairs, sorted_keys, ranges);
+}
+
+}  // namespace dqo::cuda::detail

@@ -1,0 +1,85 @@
+#pragma once
+// Internals of the CUDA rasteriser shared by its stage files (the CPU rasteriser's stages, on the
+// device): raster_projection.cu → raster_binning.cu → raster_forward.cu, sequenced by
+// cuda_rasteriser.cu. Per-Gaussian and per-pixel maths come from include/dqo_map/gaussians/math/,
+// the same functions the CPU reference calls, so the two cannot drift apart.
+
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <cstdint>
+
+#include "dqo_map/gaussians/math/composite.h"
+#include "dqo_map/gaussians/math/project_gaussian.h"
+
+namespace dqo::cuda::detail {
+
+constexpr int kTileSize = 16;  // as the CPU rasteriser's tiles: same bins, same per-tile order
+// GaussianType::kOpaque (gaussians/gaussian_map.h, which brings Eigen: kept out of device code;
+// cuda_rasteriser.cpp asserts the value).
+constexpr uint8_t kOpaqueType = 0;
+
+// The map's arrays on the device (float; rotations w x y z of any norm).
+struct DeviceGaussians {
+  size_t count = 0;
+  const float* position = nullptr;      // [N*3]
+  const float* log_scale = nullptr;     // [N*3]
+  const float* rotation = nullptr;      // [N*4]
+  const float* opacity = nullptr;       // [N]
+  const float* colour = nullptr;        // [N*3]
+  const uint32_t* object_id = nullptr;  // [N]
+  const uint8_t* type = nullptr;        // [N] GaussianType
+};
+
+// What the compositing kernel reads of one visible Gaussian.
+struct DeviceSplat {
+  gs::Vec2<float> mean2d;
+  gs::Sym2<float> conic;
+  float opacity;
+  gs::Vec3<float> colour;
+  float depth;
+  uint32_t object_id;
+  uint32_t counts_for_ins;  // an opaque Gaussian of settings.ins_object
+};
+
+struct TileRect {
+  int x0, y0, x1, y1;  // inclusive tiles; tile_count 0 when culled
+};
+
+struct ForwardSettings {
+  bool surface_depth = false;
+  bool normalise_depth = false;
+  float gap_abs = 0.02f, gap_rel = 0.03f;
+  uint32_t ins_object = 0;
+  float background[3] = {0.f, 0.f, 0.f};
+};
+
+struct ForwardImages {
+  float* rgb = nullptr;  // [P*3]
+  float* depth = nullptr;
+  float* alpha = nullptr;
+  float* ins = nullptr;
+  uint32_t* dominant_id = nullptr;
+};
+
+// Stage 1: splats[i], rects[i] and tile_count[i] (0: culled) for every Gaussian.
+void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t ins_object,
+                    DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, cudaStream_t stream);
+// Stage 2: one (tile << 32 | depth bits, index) pair per Gaussian and tile it touches, written at
+// offsets[i] (the exclusive scan of tile_count), then (after the sort) each tile's range.
+void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
+                      int tiles_x, uint64_t* keys, uint32_t* values, cudaStream_t stream);
+// Sorts the pairs by key (CUB radix sort; stable, so ties keep the index order), into *_out;
+// `temp` grows as needed.
+void sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out, const uint32_t* values_in,
+                uint32_t* values_out, void** temp, size_t* temp_bytes, cudaStream_t stream);
+// Exclusive scan of tile_count into offsets ([n + 1]: the last is the total).
+void exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offsets, void** temp, size_t* temp_bytes,
+                    cudaStream_t stream);
+void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, uint2* ranges, cudaStream_t stream);
+// Stage 3: one block per tile, one thread per pixel, front to back with early stop.
+void launch_forward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
+                    const DeviceSplat* splats, const ForwardSettings& settings, const ForwardImages& out,
+                    cudaStream_t stream);
+
+}  // namespace dqo::cuda::detail

@@ -1,0 +1,90 @@
+// Stage 3 of the CUDA rasteriser: one block per 16×16 tile, one thread per pixel; the tile's
+// Gaussians, in depth order, are staged through shared memory in batches and composited front to
+// back with early stop, by the same per-pixel steps as the CPU reference (math/alpha.h,
+// math/composite.h): alpha, colour and depth, surface depth, instance opacity, dominant ID.
+
+#include "raster_cuda.h"
+
+#include "dqo_map/gaussians/math/alpha.h"
+
+namespace dqo::cuda::detail {
+
+namespace {
+
+constexpr int kThreads = kTileSize * kTileSize;
+constexpr float kNormaliseMinAlpha = 1e-6f;  // as the CPU's: below it the normalised depth is 0
+
+__global__ void __launch_bounds__(kThreads)
+    forward_kernel(int width, int height, int tiles_x, const uint2* ranges, const uint32_t* sorted_ids,
+                   const DeviceSplat* splats, ForwardSettings settings, ForwardImages out) {
+  const int tile = blockIdx.x;
+  const int tx0 = (tile % tiles_x) * kTileSize, ty0 = (tile / tiles_x) * kTileSize;
+  const int x = tx0 + static_cast<int>(threadIdx.x % kTileSize);
+  const int y = ty0 + static_cast<int>(threadIdx.x / kTileSize);
+  const bool inside = x < width && y < height;
+
+  __shared__ DeviceSplat batch[kThreads];
+  gs::PixelAccum<float> acc = gs::pixel_accum_start<float>();
+  gs::SurfaceAccum<float> surface = gs::surface_accum_start<float>();
+  float ins = 0.f, best_weight = 0.f;
+  uint32_t best_id = 0;
+  bool done = !inside;
+
+  const uint2 range = ranges[tile];
+  const int count = static_cast<int>(range.y - range.x);
+  for (int start = 0; start < count; start += kThreads) {
+    // Everyone in the tile finished: the rest of the list cannot change a pixel.
+    if (__syncthreads_count(done ? 0 : 1) == 0) break;
+    const int k = start + static_cast<int>(threadIdx.x);
+    if (k < count) batch[threadIdx.x] = splats[sorted_ids[range.x + k]];
+    __syncthreads();
+    const int n = min(kThreads, count - start);
+    for (int j = 0; j < n && !done; ++j) {
+      const DeviceSplat& s = batch[j];
+      float alpha, vis;
+      if (!gs::evaluate_alpha(s.conic, s.mean2d, s.opacity, float(x), float(y), &alpha, &vis)) continue;
+      const float weight = acc.transmittance * alpha;
+      if (!gs::composite_step(alpha, s.colour, s.depth, &acc)) {
+        done = true;
+        break;
+      }
+      const uint32_t position = static_cast<uint32_t>(start + j + 1);
+      if (settings.surface_depth)
+        gs::surface_step(alpha, s.depth, acc.transmittance, settings.gap_abs, settings.gap_rel, position, &surface);
+      if (s.counts_for_ins) ins += alpha;
+      if (weight > best_weight) {
+        best_weight = weight;
+        best_id = s.object_id;
+      }
+    }
+  }
+  if (!inside) return;
+  const size_t pix = static_cast<size_t>(y) * width + x;
+  const float t = acc.transmittance;
+  out.rgb[3 * pix + 0] = acc.rgb.x + t * settings.background[0];
+  out.rgb[3 * pix + 1] = acc.rgb.y + t * settings.background[1];
+  out.rgb[3 * pix + 2] = acc.rgb.z + t * settings.background[2];
+  const float accumulated = 1.f - t;
+  out.alpha[pix] = accumulated;
+  if (settings.surface_depth)
+    out.depth[pix] = gs::surface_depth(surface);
+  else if (settings.normalise_depth)
+    out.depth[pix] = accumulated > kNormaliseMinAlpha ? acc.depth / accumulated : 0.f;
+  else
+    out.depth[pix] = acc.depth;
+  out.ins[pix] = ins;
+  out.dominant_id[pix] = best_id;
+}
+
+}  // namespace
+
+void launch_forward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
+                    const DeviceSplat* splats, const ForwardSettings& settings, const ForwardImages& out,
+                    cudaStream_t stream) {
+  const int tiles_x = (width + kTileSize - 1) / kTileSize, tiles_y = (height + kTileSize - 1) / kTileSize;
+  if (tiles_x * tiles_y == 0) return;
+  forward_kernel<<<tiles_x * tiles_y, kThreads, 0, stream>>>(width, height, tiles_x, ranges, sorted_ids, splats,
+                                                              settings, out);
+}
+
+}  // namespace dqo::cuda::detail
