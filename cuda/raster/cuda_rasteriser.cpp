@@ -67,8 +67,12 @@ void download(std::vector<T>* host, const T* device, size_t n, cudaStream_t stre
 
 class CudaRasteriser final : public gs::Rasteriser {
  public:
-  CudaRasteriser() { check(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking), "creating a stream"); }
+  CudaRasteriser() {
+    check(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking), "creating a stream");
+    for (cudaEvent_t& e : events_) check(cudaEventCreate(&e), "creating events");
+  }
   ~CudaRasteriser() override {
+    for (cudaEvent_t e : events_) cudaEventDestroy(e);
     if (scan_temp_) cudaFree(scan_temp_);
     if (sort_temp_) cudaFree(sort_temp_);
     if (stream_) cudaStreamDestroy(stream_);
@@ -81,6 +85,7 @@ class CudaRasteriser final : public gs::Rasteriser {
     const size_t n = map.size();
     const int width = camera.width, height = camera.height;
     const size_t pixels = static_cast<size_t>(width) * height;
+    check(cudaEventRecord(events_[0], stream_), "timing");
     detail::DeviceGaussians g;
     g.count = n;
     g.position = upload(&position_, map.positions(), "positions", stream_);
@@ -92,6 +97,7 @@ class CudaRasteriser final : public gs::Rasteriser {
     g.type = upload(&type_, map.types(), "types", stream_);
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
 
+    check(cudaEventRecord(events_[1], stream_), "timing");
     // 1. projection
     detail::DeviceSplat* splats = splats_.ensure(n, "splats");
     detail::TileRect* rects = rects_.ensure(n, "tile rectangles");
@@ -99,6 +105,7 @@ class CudaRasteriser final : public gs::Rasteriser {
     check(cudaMemsetAsync(tile_count, 0, (n + 1) * sizeof(uint32_t), stream_), "tile counts");
     detail::launch_project(g, cam, settings.ins_object, splats, rects, tile_count, stream_);
     check(cudaGetLastError(), "projection");
+    check(cudaEventRecord(events_[2], stream_), "timing");
     // 2. binning: the pair count decides the sort's buffers (the one wait on the host here).
     uint32_t* offsets = offsets_.ensure(n + 1, "offsets");
     detail::exclusive_scan(n, tile_count, offsets, &scan_temp_, &scan_temp_bytes_, stream_);
@@ -121,6 +128,7 @@ class CudaRasteriser final : public gs::Rasteriser {
     check(cudaMemsetAsync(ranges, 0, tiles * sizeof(uint2), stream_), "tile ranges");
     detail::launch_tile_ranges(pairs, sorted_keys, ranges, stream_);
     check(cudaGetLastError(), "binning");
+    check(cudaEventRecord(events_[3], stream_), "timing");
     // 3. compositing
     detail::ForwardSettings fs;
     fs.surface_depth = settings.surface_depth;
@@ -137,6 +145,7 @@ class CudaRasteriser final : public gs::Rasteriser {
     img.dominant_id = dominant_.ensure(pixels, "ID image");
     detail::launch_forward(width, height, ranges, sorted_ids, splats, fs, img, stream_);
     check(cudaGetLastError(), "compositing");
+    check(cudaEventRecord(events_[4], stream_), "timing");
     out->width = width;
     out->height = height;
     download(&out->rgb, img.rgb, 3 * pixels, stream_);
@@ -144,8 +153,14 @@ class CudaRasteriser final : public gs::Rasteriser {
     download(&out->alpha, img.alpha, pixels, stream_);
     download(&out->ins, img.ins, pixels, stream_);
     download(&out->dominant_id, img.dominant_id, pixels, stream_);
+    check(cudaEventRecord(events_[5], stream_), "timing");
     check(cudaStreamSynchronize(stream_), "compositing");
+    float ms[5] = {0, 0, 0, 0, 0};
+    for (int k = 0; k < 5; ++k) cudaEventElapsedTime(&ms[k], events_[k], events_[k + 1]);
+    timings_ = ForwardTimings{ms[0], ms[1], ms[2], ms[3], ms[4], pairs};
   }
+
+  const ForwardTimings& timings() const { return timings_; }
 
   void backward(const gs::GaussianMap&, const PinholeCamera&, const SE3&, const gs::RenderSettings&,
                 const gs::RenderState&, const gs::OutputGradients&, gs::MapGradients*) override {
@@ -167,9 +182,17 @@ class CudaRasteriser final : public gs::Rasteriser {
   void* scan_temp_ = nullptr;
   void* sort_temp_ = nullptr;
   size_t scan_temp_bytes_ = 0, sort_temp_bytes_ = 0;
+  cudaEvent_t events_[6] = {};
+  ForwardTimings timings_;
 };
 
 }  // namespace
+
+std::optional<ForwardTimings> last_forward_timings(const gs::Rasteriser& rasteriser) {
+  const auto* r = dynamic_cast<const CudaRasteriser*>(&rasteriser);
+  if (!r) return std::nullopt;
+  return r->timings();
+}
 
 std::unique_ptr<gs::Rasteriser> make_cuda_rasteriser() {
   int count = 0;

@@ -4,6 +4,12 @@
 // (the sizes a SLAM map of a room holds), random rotations and colours, opacity 0.9 (OG).
 //
 //   bench_raster [--counts 10000,100000] [--threads 1,2] [--repeats 5]
+//
+// On a given map (the comparison maps of ../shared/bench: room_gaussians.py N OUT.ply writes the
+// PLY and OUT.camera.txt), the median of --repeats runs after 10 warm-ups, of the backend's forward
+// (and, on the CPU, backward) — what gsplat_bench.py times on the same files:
+//
+//   bench_raster --map MAP.ply --camera MAP.camera.txt [--backend cpu|cuda] [--repeats 50] [--threads T]
 
 #include <algorithm>
 #include <chrono>
@@ -17,7 +23,13 @@
 #include <string>
 #include <vector>
 
+#include "dqo_map/gaussians/gaussian_ply.h"
 #include "dqo_map/gaussians/rasteriser.h"
+#ifdef DQO_BENCH_CUDA
+#include "dqo_map/cuda/cuda_rasteriser.h"
+#endif
+#include <fstream>
+#include <map>
 
 namespace dqo::gs {
 namespace {
@@ -74,22 +86,159 @@ double cpu_ms() {
 }  // namespace
 }  // namespace dqo::gs
 
+namespace dqo::gs {
+namespace {
+
+// room_gaussians.py's camera file: `key value` lines, T_cw as 12 numbers (3x4, row-major).
+bool read_camera_file(const std::string& path, PinholeCamera* cam, SE3* T_cw, std::string* error) {
+  std::ifstream in(path);
+  if (!in) {
+    *error = "cannot read " + path;
+    return false;
+  }
+  std::map<std::string, double> v;
+  std::vector<double> T;
+  std::string line;
+  while (std::getline(in, line)) {
+    std::stringstream ss(line.substr(0, line.find('#')));
+    std::string key;
+    if (!(ss >> key)) continue;
+    if (key == "T_cw") {
+      double x;
+      while (ss >> x) T.push_back(x);
+    } else {
+      ss >> v[key];
+    }
+  }
+  for (const char* key : {"width", "height", "fx", "fy", "cx", "cy"}) {
+    if (!v.count(key)) {
+      *error = path + ": no " + key;
+      return false;
+    }
+  }
+  if (T.size() != 12) {
+    *error = path + ": T_cw needs 12 numbers";
+    return false;
+  }
+  *cam = PinholeCamera{v["fx"], v["fy"], v["cx"], v["cy"], static_cast<int>(v["width"]), static_cast<int>(v["height"])};
+  Eigen::Matrix3d R;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R(r, c) = T[4 * r + c];
+  *T_cw = SE3::from_rotation_translation(R, Eigen::Vector3d(T[3], T[7], T[11]));
+  return true;
+}
+
+double median_of(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+int bench_map(const std::string& map_path, const std::string& camera_path, const std::string& backend, int repeats,
+              int threads) {
+  std::string error;
+  const auto map = load_gaussians_ply(map_path, &error);
+  PinholeCamera cam;
+  SE3 T_cw;
+  if (!map || !read_camera_file(camera_path, &cam, &T_cw, &error)) {
+    std::fprintf(stderr, "bench_raster: %s\n", error.c_str());
+    return 1;
+  }
+  std::unique_ptr<Rasteriser> r;
+  if (backend == "cpu") {
+    r = make_cpu_rasteriser(threads);
+  } else if (backend == "cuda") {
+#ifdef DQO_BENCH_CUDA
+    r = cuda::make_cuda_rasteriser();
+#else
+    std::fprintf(stderr, "bench_raster: this build has no CUDA backend\n");
+    return 1;
+#endif
+  } else {
+    std::fprintf(stderr, "bench_raster: --backend is cpu or cuda, not %s\n", backend.c_str());
+    return 2;
+  }
+  RenderSettings settings;  // expected depth, as gsplat_bench.py renders
+  const bool with_backward = backend == "cpu";
+  const int warmups = backend == "cpu" ? 1 : 10;
+  std::vector<double> fwd, bwd, upload, project, bin, composite, download;
+  size_t pairs = 0;
+  RenderOutput out;
+  for (int i = 0; i < warmups + repeats; ++i) {
+    std::unique_ptr<RenderState> state;
+    const auto t0 = std::chrono::steady_clock::now();
+    r->forward(*map, cam, T_cw, settings, &out, with_backward ? &state : nullptr);
+    const auto t1 = std::chrono::steady_clock::now();
+    if (with_backward) {
+      OutputGradients g;
+      g.rgb.assign(out.rgb.size(), 1e-3f);
+      g.depth.assign(out.depth.size(), 1e-3f);
+      MapGradients grad;
+      r->backward(*map, cam, T_cw, settings, *state, g, &grad);
+    }
+    const auto t2 = std::chrono::steady_clock::now();
+    if (i >= warmups) {
+      fwd.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+      bwd.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
+#ifdef DQO_BENCH_CUDA
+      if (const auto t = cuda::last_forward_timings(*r)) {
+        upload.push_back(t->upload_ms), project.push_back(t->project_ms), bin.push_back(t->bin_ms);
+        composite.push_back(t->composite_ms), download.push_back(t->download_ms), pairs = t->pairs;
+      }
+#endif
+    }
+  }
+  size_t covered = 0;
+  for (float a : out.alpha) covered += a > 0.5f;
+  std::printf("%s: %zu Gaussians, %dx%d, backend %s, median of %d: forward %.2f ms wall (upload of the map and "
+              "download of the images included)%s; coverage %.3f\n",
+              map_path.c_str(), map->size(), cam.width, cam.height, backend.c_str(), repeats, median_of(fwd),
+              with_backward ? (", backward " + std::to_string(median_of(bwd)) + " ms").c_str() : ", no backward yet",
+              static_cast<double>(covered) / out.alpha.size());
+  if (!upload.empty()) {
+    std::printf("  GPU time (CUDA events, medians): upload %.2f ms, projection %.3f ms, binning %.3f ms (%zu pairs), "
+                "compositing %.3f ms, download %.2f ms; forward on the device %.3f ms\n",
+                median_of(upload), median_of(project), median_of(bin), pairs, median_of(composite),
+                median_of(download), median_of(project) + median_of(bin) + median_of(composite));
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace dqo::gs
+
 int main(int argc, char** argv) {
   using namespace dqo;
   using namespace dqo::gs;
   std::vector<int> counts = {10000, 100000}, threads = {1, 2};
   int repeats = 5;
+  std::string map_path, camera_path, backend = "cpu";
+  bool repeats_given = false;
   for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--counts"))
+    if (!std::strcmp(argv[i], "--map"))
+      map_path = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--camera"))
+      camera_path = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--backend"))
+      backend = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--counts"))
       counts = parse_list(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--threads"))
       threads = parse_list(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--repeats"))
-      repeats = std::max(1, std::atoi(argv[i + 1]));
+      repeats = std::max(1, std::atoi(argv[i + 1])), repeats_given = true;
     else {
-      std::fprintf(stderr, "usage: bench_raster [--counts A,B] [--threads A,B] [--repeats N]\n");
+      std::fprintf(stderr,
+                   "usage: bench_raster [--counts A,B] [--threads A,B] [--repeats N]\n"
+                   "       bench_raster --map MAP.ply --camera MAP.camera.txt [--backend cpu|cuda] [--repeats N]\n");
       return 2;
     }
+  }
+  if (!map_path.empty() || !camera_path.empty()) {
+    if (map_path.empty() || camera_path.empty()) {
+      std::fprintf(stderr, "bench_raster: --map and --camera go together\n");
+      return 2;
+    }
+    return bench_map(map_path, camera_path, backend, repeats_given ? repeats : 50, threads.empty() ? 0 : threads[0]);
   }
   const int sizes[][2] = {{320, 240}, {640, 480}};
   std::printf("CPU rasteriser, median of %d runs (ms); loss gradient on rgb, depth and ins\n",

@@ -5,7 +5,9 @@
 // Errors of the CUDA runtime (no device, out of memory) are thrown as std::runtime_error naming
 // the step; the rasteriser stays usable after one.
 
+#include <cstddef>
 #include <memory>
+#include <optional>
 
 #include "dqo_map/gaussians/rasteriser.h"
 
@@ -13,5 +15,13 @@ namespace dqo::cuda {
 
 // Throws std::runtime_error when no GPU can be used.
 std::unique_ptr<gs::Rasteriser> make_cuda_rasteriser();
+
+// GPU time of each stage of the last forward() (CUDA events on its stream), for the benchmarks.
+struct ForwardTimings {
+  double upload_ms = 0, project_ms = 0, bin_ms = 0, composite_ms = 0, download_ms = 0;
+  size_t pairs = 0;  // (Gaussian, tile) pairs sorted
+};
+// nullopt for a rasteriser that make_cuda_rasteriser() did not make.
+std::optional<ForwardTimings> last_forward_timings(const gs::Rasteriser& rasteriser);
 
 }  // namespace dqo::cuda
