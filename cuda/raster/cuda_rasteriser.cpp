@@ -7,6 +7,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "dqo_map/gaussians/detail/cpu_rasteriser.h"
 #include "dqo_map/gaussians/gaussian_map.h"
@@ -65,6 +66,13 @@ void download(std::vector<T>* host, const T* device, size_t n, cudaStream_t stre
   if (n) check(cudaMemcpyAsync(host->data(), device, n * sizeof(T), cudaMemcpyDeviceToHost, stream), "download");
 }
 
+// What forward() hands out for backward(): the rasteriser keeps the projected Gaussians, tile lists
+// and per-pixel state of its latest forward pass on the device; the state names that pass.
+struct CudaRenderState final : gs::RenderState {
+  const void* owner = nullptr;
+  uint64_t generation = 0;
+};
+
 class CudaRasteriser final : public gs::Rasteriser {
  public:
   CudaRasteriser() {
@@ -82,6 +90,7 @@ class CudaRasteriser final : public gs::Rasteriser {
                const gs::RenderSettings& settings, gs::RenderOutput* out,
                std::unique_ptr<gs::RenderState>* state) override {
     if (state) state->reset();
+    ++generation_;
     const size_t n = map.size();
     const int width = camera.width, height = camera.height;
     const size_t pixels = static_cast<size_t>(width) * height;
@@ -143,7 +152,17 @@ class CudaRasteriser final : public gs::Rasteriser {
     img.alpha = alpha_.ensure(pixels, "alpha image");
     img.ins = ins_.ensure(pixels, "ins image");
     img.dominant_id = dominant_.ensure(pixels, "ID image");
-    detail::launch_forward(width, height, ranges, sorted_ids, splats, fs, img, stream_);
+    detail::ForwardState kept;
+    if (state) {
+      kept.t_final = t_final_.ensure(pixels, "transmittance");
+      kept.n_contrib = n_contrib_.ensure(pixels, "contributors");
+      kept.depth_raw = depth_raw_.ensure(pixels, "raw depth");
+      if (settings.surface_depth) kept.surface = surface_.ensure(pixels, "surface");
+    }
+    detail::launch_forward(width, height, ranges, sorted_ids, splats, fs, img, kept, stream_);
+    forward_settings_ = fs;
+    forward_state_ = kept;
+    n_ = n;
     check(cudaGetLastError(), "compositing");
     check(cudaEventRecord(events_[4], stream_), "timing");
     out->width = width;
@@ -157,14 +176,80 @@ class CudaRasteriser final : public gs::Rasteriser {
     check(cudaStreamSynchronize(stream_), "compositing");
     float ms[5] = {0, 0, 0, 0, 0};
     for (int k = 0; k < 5; ++k) cudaEventElapsedTime(&ms[k], events_[k], events_[k + 1]);
-    timings_ = ForwardTimings{ms[0], ms[1], ms[2], ms[3], ms[4], pairs};
+    timings_ = ForwardTimings{ms[0], ms[1], ms[2], ms[3], ms[4], 0.0, pairs};
+    if (state) {
+      auto st = std::make_unique<CudaRenderState>();
+      st->owner = this;
+      st->generation = generation_;
+      *state = std::move(st);
+    }
   }
 
   const ForwardTimings& timings() const { return timings_; }
 
-  void backward(const gs::GaussianMap&, const PinholeCamera&, const SE3&, const gs::RenderSettings&,
-                const gs::RenderState&, const gs::OutputGradients&, gs::MapGradients*) override {
-    throw std::logic_error("the CUDA rasteriser has no backward pass yet (issue 12): use the CPU backend");
+  void backward(const gs::GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
+                const gs::RenderSettings& settings, const gs::RenderState& state, const gs::OutputGradients& grad_out,
+                gs::MapGradients* grad_map) override {
+    const auto* st = dynamic_cast<const CudaRenderState*>(&state);
+    if (!st || st->owner != this || st->generation != generation_ || map.size() != n_) {
+      throw std::invalid_argument(
+          "CUDA rasteriser: backward() needs the state of this rasteriser's latest forward() on the same map");
+    }
+    const size_t n = n_;
+    const int width = camera.width, height = camera.height;
+    const size_t pixels = static_cast<size_t>(width) * height;
+    auto upload_or_null = [&](DeviceBuffer<float>* b, const std::vector<float>& v, size_t expected) -> const float* {
+      if (v.empty()) return nullptr;
+      if (v.size() != expected) throw std::invalid_argument("CUDA rasteriser: an output gradient of the wrong size");
+      return upload(b, v, "output gradients", stream_);
+    };
+    detail::ImageGradientsDevice go;
+    go.rgb = upload_or_null(&v_rgb_, grad_out.rgb, 3 * pixels);
+    go.depth = upload_or_null(&v_depth_, grad_out.depth, pixels);
+    go.alpha = upload_or_null(&v_alpha_, grad_out.alpha, pixels);
+    go.ins = upload_or_null(&v_ins_, grad_out.ins, pixels);
+    detail::Grad2D* grad2d = grad2d_.ensure(n, "2D gradients");
+    check(cudaMemsetAsync(grad2d, 0, n * sizeof(detail::Grad2D), stream_), "2D gradients");
+    check(cudaEventRecord(events_[0], stream_), "timing");
+    detail::launch_backward(width, height, ranges_.get(), sorted_ids_.get(), splats_.get(), forward_settings_,
+                            forward_state_, go, grad2d, stream_);
+    check(cudaGetLastError(), "backward");
+    float* gp = g_position_.ensure(3 * n, "gradients");
+    float* gl = g_log_scale_.ensure(3 * n, "gradients");
+    float* gr = g_rotation_.ensure(4 * n, "gradients");
+    float* gop = g_opacity_.ensure(n, "gradients");
+    float* gc = g_colour_.ensure(3 * n, "gradients");
+    const std::pair<float*, size_t> blocks[] = {{gp, 3 * n}, {gl, 3 * n}, {gr, 4 * n}, {gop, n}, {gc, 3 * n}};
+    for (const auto& [ptr, count] : blocks)
+      check(cudaMemsetAsync(ptr, 0, std::max<size_t>(count, 1) * sizeof(float), stream_), "gradients");
+    detail::DeviceGaussians g;
+    g.count = n;
+    g.position = position_.get();
+    g.log_scale = log_scale_.get();
+    g.rotation = rotation_.get();
+    g.opacity = opacity_.get();
+    g.colour = colour_.get();
+    g.object_id = object_id_.get();
+    g.type = type_.get();
+    const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
+    detail::launch_project_vjp(g, cam, tile_count_.get(), grad2d, gp, gl, gr, gop, gc, stream_);
+    check(cudaGetLastError(), "projection backward");
+    check(cudaEventRecord(events_[1], stream_), "timing");
+    if (grad_map->position.size() != 3 * n) grad_map->resize_for(map);
+    std::vector<float> host;
+    auto add = [&](std::vector<float>* dst, const float* src, size_t count) {
+      download(&host, src, count, stream_);
+      check(cudaStreamSynchronize(stream_), "gradients");
+      for (size_t k = 0; k < count; ++k) (*dst)[k] += host[k];
+    };
+    add(&grad_map->position, gp, 3 * n);
+    add(&grad_map->log_scale, gl, 3 * n);
+    add(&grad_map->rotation, gr, 4 * n);
+    add(&grad_map->opacity, gop, n);
+    add(&grad_map->colour, gc, 3 * n);
+    float ms = 0;
+    cudaEventElapsedTime(&ms, events_[0], events_[1]);
+    timings_.backward_ms = ms;
   }
 
  private:
@@ -184,6 +269,17 @@ class CudaRasteriser final : public gs::Rasteriser {
   size_t scan_temp_bytes_ = 0, sort_temp_bytes_ = 0;
   cudaEvent_t events_[6] = {};
   ForwardTimings timings_;
+  // The latest forward pass, for backward().
+  uint64_t generation_ = 0;
+  size_t n_ = 0;
+  detail::ForwardSettings forward_settings_;
+  detail::ForwardState forward_state_;
+  DeviceBuffer<float> t_final_, depth_raw_;
+  DeviceBuffer<uint32_t> n_contrib_;
+  DeviceBuffer<gs::SurfaceAccum<float>> surface_;
+  DeviceBuffer<float> v_rgb_, v_depth_, v_alpha_, v_ins_;
+  DeviceBuffer<detail::Grad2D> grad2d_;
+  DeviceBuffer<float> g_position_, g_log_scale_, g_rotation_, g_opacity_, g_colour_;
 };
 
 }  // namespace

@@ -54,6 +54,30 @@ struct ForwardSettings {
   float background[3] = {0.f, 0.f, 0.f};
 };
 
+// What the forward pass keeps per pixel for the backward one (every pointer null: not kept).
+struct ForwardState {
+  float* t_final = nullptr;          // transmittance after the last contributor
+  uint32_t* n_contrib = nullptr;     // list position of the last contributor + 1 (0: none)
+  float* depth_raw = nullptr;        // Σ T α z before any normalisation
+  gs::SurfaceAccum<float>* surface = nullptr;  // with surface_depth only
+};
+
+// Gradients of one Gaussian's screen-space quantities, summed over pixels (float atomics).
+struct Grad2D {
+  float mean2d[2];
+  float conic[3];  // xx xy yy
+  float opacity;
+  float colour[3];
+  float depth;
+};
+
+struct ImageGradientsDevice {
+  const float* rgb = nullptr;  // [P*3] or null
+  const float* depth = nullptr;
+  const float* alpha = nullptr;
+  const float* ins = nullptr;
+};
+
 struct ForwardImages {
   float* rgb = nullptr;  // [P*3]
   float* depth = nullptr;
@@ -80,6 +104,15 @@ void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, uint2* ranges
 // Stage 3: one block per tile, one thread per pixel, front to back with early stop.
 void launch_forward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
                     const DeviceSplat* splats, const ForwardSettings& settings, const ForwardImages& out,
-                    cudaStream_t stream);
+                    const ForwardState& state, cudaStream_t stream);
+// Stage 4: the tile lists walked back to front per pixel, gradients of each Gaussian's 2D
+// quantities summed into grad2d ([N], zeroed by the caller); then each Gaussian's through
+// project_gaussian_vjp() into the attribute gradients (added).
+void launch_backward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
+                     const DeviceSplat* splats, const ForwardSettings& settings, const ForwardState& state,
+                     const ImageGradientsDevice& grad_out, Grad2D* grad2d, cudaStream_t stream);
+void launch_project_vjp(const DeviceGaussians& g, const gs::CameraView<float>& cam, const uint32_t* tile_count,
+                        const Grad2D* grad2d, float* grad_position, float* grad_log_scale, float* grad_rotation,
+                        float* grad_opacity, float* grad_colour, cudaStream_t stream);
 
 }  // namespace dqo::cuda::detail

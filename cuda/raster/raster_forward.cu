@@ -16,7 +16,8 @@ constexpr float kNormaliseMinAlpha = 1e-6f;  // as the CPU's: below it the norma
 
 __global__ void __launch_bounds__(kThreads)
     forward_kernel(int width, int height, int tiles_x, const uint2* ranges, const uint32_t* sorted_ids,
-                   const DeviceSplat* splats, ForwardSettings settings, ForwardImages out) {
+                   const DeviceSplat* splats, ForwardSettings settings, ForwardImages out,
+                   ForwardState state) {
   const int tile = blockIdx.x;
   const int tx0 = (tile % tiles_x) * kTileSize, ty0 = (tile / tiles_x) * kTileSize;
   const int x = tx0 + static_cast<int>(threadIdx.x % kTileSize);
@@ -29,6 +30,7 @@ __global__ void __launch_bounds__(kThreads)
   float ins = 0.f, best_weight = 0.f;
   uint32_t best_id = 0;
   bool done = !inside;
+  uint32_t n_contrib = 0;
 
   const uint2 range = ranges[tile];
   const int count = static_cast<int>(range.y - range.x);
@@ -56,6 +58,7 @@ __global__ void __launch_bounds__(kThreads)
         best_weight = weight;
         best_id = s.object_id;
       }
+      n_contrib = position;
     }
   }
   if (!inside) return;
@@ -74,17 +77,23 @@ __global__ void __launch_bounds__(kThreads)
     out.depth[pix] = acc.depth;
   out.ins[pix] = ins;
   out.dominant_id[pix] = best_id;
+  if (state.t_final) {
+    state.t_final[pix] = t;
+    state.n_contrib[pix] = n_contrib;
+    state.depth_raw[pix] = acc.depth;
+    if (settings.surface_depth) state.surface[pix] = surface;
+  }
 }
 
 }  // namespace
 
 void launch_forward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
                     const DeviceSplat* splats, const ForwardSettings& settings, const ForwardImages& out,
-                    cudaStream_t stream) {
+                    const ForwardState& state, cudaStream_t stream) {
   const int tiles_x = (width + kTileSize - 1) / kTileSize, tiles_y = (height + kTileSize - 1) / kTileSize;
   if (tiles_x * tiles_y == 0) return;
   forward_kernel<<<tiles_x * tiles_y, kThreads, 0, stream>>>(width, height, tiles_x, ranges, sorted_ids, splats,
-                                                              settings, out);
+                                                              settings, out, state);
 }
 
 }  // namespace dqo::cuda::detail

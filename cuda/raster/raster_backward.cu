@@ -1,0 +1,166 @@
+// Stage 4 of the CUDA rasteriser: the backward pass, the CPU reference's (src/gaussians/
+// raster_backward.cpp) by the same per-pixel steps (math/composite.h, math/alpha.h). One block per
+// tile, one thread per pixel: the tile's list is walked back to front from the last contributor of
+// any of its pixels, in shared-memory batches; a pixel takes part from its own last contributor on,
+// reconstructs the transmittance in front of each Gaussian from its final one and adds that
+// Gaussian's share of the 2D gradients. A warp sums its pixels' shares before one lane adds them
+// to the Gaussian's total (float atomics: the sum's order, and so its last bits, vary from run to
+// run). Then every visible Gaussian's 2D gradients go through project_gaussian_vjp().
+
+#include "raster_cuda.h"
+
+#include "dqo_map/gaussians/math/alpha.h"
+
+namespace dqo::cuda::detail {
+
+namespace {
+
+constexpr int kThreads = kTileSize * kTileSize;
+constexpr float kNormaliseMinAlpha = 1e-6f;
+
+__device__ float warp_sum(float v) {
+  for (int offset = 16; offset > 0; offset /= 2) v += __shfl_down_sync(0xffffffffu, v, offset);
+  return v;
+}
+
+__global__ void __launch_bounds__(kThreads)
+    backward_kernel(int width, int height, int tiles_x, const uint2* ranges, const uint32_t* sorted_ids,
+                    const DeviceSplat* splats, ForwardSettings settings, ForwardState state,
+                    ImageGradientsDevice grad_out, Grad2D* grad2d) {
+  const int tile = blockIdx.x;
+  const int tx0 = (tile % tiles_x) * kTileSize, ty0 = (tile / tiles_x) * kTileSize;
+  const int x = tx0 + static_cast<int>(threadIdx.x % kTileSize);
+  const int y = ty0 + static_cast<int>(threadIdx.x / kTileSize);
+  const bool inside = x < width && y < height;
+  const size_t pix = inside ? static_cast<size_t>(y) * width + x : 0;
+
+  // The pixel's output gradients, as the CPU sets them up.
+  float t_final = 1.f;
+  uint32_t n_contrib = 0;
+  gs::Vec3<float> v_rgb{0.f, 0.f, 0.f};
+  float v_depth = 0.f, v_alpha_px = 0.f, v_ins = 0.f, v_surface = 0.f;
+  gs::SurfaceAccum<float> sa = gs::surface_accum_start<float>();
+  gs::SurfaceBack<float> surface_back{0.f, 0.f};
+  if (inside) {
+    t_final = state.t_final[pix];
+    n_contrib = state.n_contrib[pix];
+    if (grad_out.rgb) v_rgb = {grad_out.rgb[3 * pix], grad_out.rgb[3 * pix + 1], grad_out.rgb[3 * pix + 2]};
+    v_depth = grad_out.depth ? grad_out.depth[pix] : 0.f;
+    v_alpha_px = grad_out.alpha ? grad_out.alpha[pix] : 0.f;
+    v_ins = grad_out.ins ? grad_out.ins[pix] : 0.f;
+    if (settings.surface_depth) {
+      sa = state.surface[pix];
+      if (sa.weight > 0.f) {
+        v_surface = v_depth;
+        surface_back = gs::surface_back_start(sa);
+      }
+      v_depth = 0.f;
+    } else if (settings.normalise_depth) {
+      const float accumulated = 1.f - t_final;
+      if (accumulated > kNormaliseMinAlpha) {
+        v_alpha_px -= v_depth * state.depth_raw[pix] / (accumulated * accumulated);
+        v_depth /= accumulated;
+      } else {
+        v_depth = 0.f;
+      }
+    }
+  }
+  gs::PixelAccumBack<float> back = gs::pixel_accum_back_start(t_final);
+  const gs::Vec3<float> bg{settings.background[0], settings.background[1], settings.background[2]};
+
+  const uint32_t max_contrib = __reduce_max_sync(0xffffffffu, n_contrib);
+  __shared__ uint32_t block_max[kThreads / 32];
+  if (threadIdx.x % 32 == 0) block_max[threadIdx.x / 32] = max_contrib;
+  __syncthreads();
+  uint32_t last = 0;
+  for (int w = 0; w < kThreads / 32; ++w) last = max(last, block_max[w]);
+
+  __shared__ DeviceSplat batch[kThreads];
+  __shared__ uint32_t batch_id[kThreads];
+  const uint2 range = ranges[tile];
+  // Positions [0, last) of the list, back to front, kThreads at a time.
+  for (int end = static_cast<int>(last); end > 0; end -= kThreads) {
+    const int begin = max(0, end - kThreads);
+    __syncthreads();
+    const int k = begin + static_cast<int>(threadIdx.x);
+    if (k < end) {
+      batch_id[threadIdx.x] = sorted_ids[range.x + k];
+      batch[threadIdx.x] = splats[batch_id[threadIdx.x]];
+    }
+    __syncthreads();
+    for (int pos = end - 1; pos >= begin; --pos) {
+      const DeviceSplat& s = batch[pos - begin];
+      Grad2D g{};
+      bool contributes = false;
+      if (static_cast<uint32_t>(pos) < n_contrib) {
+        float alpha, vis;
+        if (gs::evaluate_alpha(s.conic, s.mean2d, s.opacity, float(x), float(y), &alpha, &vis)) {
+          gs::Vec3<float> v_colour{0.f, 0.f, 0.f};
+          float v_z = 0.f;
+          float v_alpha = gs::composite_step_vjp(alpha, s.colour, s.depth, t_final, bg, v_rgb, v_depth, v_alpha_px,
+                                                 &back, &v_colour, &v_z);
+          if (s.counts_for_ins) v_alpha += v_ins;
+          if (v_surface != 0.f) {
+            const uint32_t position = static_cast<uint32_t>(pos) + 1;
+            if (position >= sa.first && position <= sa.last)
+              v_alpha += gs::surface_step_vjp(alpha, s.depth, gs::surface_depth(sa), sa.weight, v_surface,
+                                              &surface_back, &v_z);
+          }
+          gs::Sym2<float> v_conic{0.f, 0.f, 0.f};
+          gs::Vec2<float> v_mean{0.f, 0.f};
+          float v_opacity = 0.f;
+          gs::evaluate_alpha_vjp(s.conic, s.mean2d, s.opacity, float(x), float(y), vis, v_alpha, &v_conic, &v_mean,
+                                 &v_opacity);
+          g = Grad2D{{v_mean.x, v_mean.y}, {v_conic.xx, v_conic.xy, v_conic.yy}, v_opacity,
+                     {v_colour.x, v_colour.y, v_colour.z}, v_z};
+          contributes = true;
+        }
+      }
+      // Warps where no pixel took part skip the sums (most, for small Gaussians).
+      if (__any_sync(0xffffffffu, contributes)) {
+        float* gf = reinterpret_cast<float*>(&g);
+        float* dst = reinterpret_cast<float*>(&grad2d[batch_id[pos - begin]]);
+        for (int c = 0; c < 10; ++c) {
+          const float v = warp_sum(gf[c]);
+          if (threadIdx.x % 32 == 0 && v != 0.f) atomicAdd(dst + c, v);
+        }
+      }
+    }
+  }
+}
+
+__global__ void project_vjp_kernel(DeviceGaussians g, gs::CameraView<float> cam, const uint32_t* tile_count,
+                                   const Grad2D* grad2d, float* grad_position, float* grad_log_scale,
+                                   float* grad_rotation, float* grad_opacity, float* grad_colour) {
+  const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (i >= g.count || tile_count[i] == 0) return;  // culled: no gradient
+  const Grad2D t = grad2d[i];
+  grad_opacity[i] += t.opacity;
+  for (int c = 0; c < 3; ++c) grad_colour[3 * i + c] += t.colour[c];
+  gs::project_gaussian_vjp(g.position + 3 * i, g.log_scale + 3 * i, g.rotation + 4 * i, cam,
+                           gs::Vec2<float>{t.mean2d[0], t.mean2d[1]}, gs::Sym2<float>{t.conic[0], t.conic[1], t.conic[2]},
+                           t.depth, grad_position + 3 * i, grad_log_scale + 3 * i, grad_rotation + 4 * i,
+                           static_cast<gs::Mat3<float>*>(nullptr), static_cast<gs::Vec3<float>*>(nullptr));
+}
+
+}  // namespace
+
+void launch_backward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
+                     const DeviceSplat* splats, const ForwardSettings& settings, const ForwardState& state,
+                     const ImageGradientsDevice& grad_out, Grad2D* grad2d, cudaStream_t stream) {
+  const int tiles_x = (width + kTileSize - 1) / kTileSize, tiles_y = (height + kTileSize - 1) / kTileSize;
+  if (tiles_x * tiles_y == 0) return;
+  backward_kernel<<<tiles_x * tiles_y, kThreads, 0, stream>>>(width, height, tiles_x, ranges, sorted_ids, splats,
+                                                               settings, state, grad_out, grad2d);
+}
+
+void launch_project_vjp(const DeviceGaussians& g, const gs::CameraView<float>& cam, const uint32_t* tile_count,
+                        const Grad2D* grad2d, float* grad_position, float* grad_log_scale, float* grad_rotation,
+                        float* grad_opacity, float* grad_colour, cudaStream_t stream) {
+  if (g.count == 0) return;
+  constexpr int kBlock = 256;
+  project_vjp_kernel<<<static_cast<unsigned>((g.count + kBlock - 1) / kBlock), kBlock, 0, stream>>>(
+      g, cam, tile_count, grad2d, grad_position, grad_log_scale, grad_rotation, grad_opacity, grad_colour);
+}
+
+}  // namespace dqo::cuda::detail
