@@ -1,5 +1,10 @@
 #include "dqo_map/mapping/gaussian_mapper.h"
 
+#ifdef DQO_MAPPING_CUDA
+#include "dqo_map/cuda/cuda_rasteriser.h"
+#include "dqo_map/cuda/device_info.h"
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -20,10 +25,18 @@ bool fail(std::string* error, const std::string& message) {
 std::unique_ptr<gs::Rasteriser> make_rasteriser(const GaussianMapperParams& p) {
   switch (p.backend) {
     case Backend::kCuda:
-      // The CUDA backend arrives with its own issue; until then asking for it is an error rather
-      // than a silent CPU run that would be 50 times slower than the user expects.
-      throw std::invalid_argument("mapping backend 'cuda' is not available in this build");
-    case Backend::kAuto:  // the CPU until a GPU backend exists
+#ifdef DQO_MAPPING_CUDA
+      // No silent CPU run when the GPU was asked for: it would be far slower than expected.
+      if (!cuda::gpu_available()) throw std::invalid_argument("mapping backend 'cuda': no usable GPU");
+      return cuda::make_cuda_rasteriser();
+#else
+      throw std::invalid_argument("mapping backend 'cuda' is not available in this build (no CUDA ring)");
+#endif
+    case Backend::kAuto:
+#ifdef DQO_MAPPING_CUDA
+      if (cuda::gpu_available()) return cuda::make_cuda_rasteriser();
+#endif
+      break;
     case Backend::kCpu:
       break;
   }
