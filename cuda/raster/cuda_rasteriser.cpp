@@ -105,6 +105,7 @@ class CudaRasteriser final : public gs::Rasteriser {
     g.object_id = upload(&object_id_, map.object_ids_per_gaussian(), "object IDs", stream_);
     g.type = upload(&type_, map.types(), "types", stream_);
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
+    gaussians_ = g;
 
     check(cudaEventRecord(events_[1], stream_), "timing");
     // 1. projection
@@ -222,31 +223,19 @@ class CudaRasteriser final : public gs::Rasteriser {
     const std::pair<float*, size_t> blocks[] = {{gp, 3 * n}, {gl, 3 * n}, {gr, 4 * n}, {gop, n}, {gc, 3 * n}};
     for (const auto& [ptr, count] : blocks)
       check(cudaMemsetAsync(ptr, 0, std::max<size_t>(count, 1) * sizeof(float), stream_), "gradients");
-    detail::DeviceGaussians g;
-    g.count = n;
-    g.position = position_.get();
-    g.log_scale = log_scale_.get();
-    g.rotation = rotation_.get();
-    g.opacity = opacity_.get();
-    g.colour = colour_.get();
-    g.object_id = object_id_.get();
-    g.type = type_.get();
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
-    detail::launch_project_vjp(g, cam, tile_count_.get(), grad2d, gp, gl, gr, gop, gc, stream_);
+    detail::launch_project_vjp(gaussians_, cam, tile_count_.get(), grad2d, gp, gl, gr, gop, gc, stream_);
     check(cudaGetLastError(), "projection backward");
     check(cudaEventRecord(events_[1], stream_), "timing");
     if (grad_map->position.size() != 3 * n) grad_map->resize_for(map);
-    std::vector<float> host;
-    auto add = [&](std::vector<float>* dst, const float* src, size_t count) {
-      download(&host, src, count, stream_);
-      check(cudaStreamSynchronize(stream_), "gradients");
-      for (size_t k = 0; k < count; ++k) (*dst)[k] += host[k];
-    };
-    add(&grad_map->position, gp, 3 * n);
-    add(&grad_map->log_scale, gl, 3 * n);
-    add(&grad_map->rotation, gr, 4 * n);
-    add(&grad_map->opacity, gop, n);
-    add(&grad_map->colour, gc, 3 * n);
+    // All five down, one wait, then added (MapGradients accumulates).
+    std::vector<float> host[5];
+    std::vector<float>* dst[5] = {&grad_map->position, &grad_map->log_scale, &grad_map->rotation,
+                                  &grad_map->opacity, &grad_map->colour};
+    for (int b = 0; b < 5; ++b) download(&host[b], blocks[b].first, blocks[b].second, stream_);
+    check(cudaStreamSynchronize(stream_), "gradients");
+    for (int b = 0; b < 5; ++b)
+      for (size_t k = 0; k < host[b].size(); ++k) (*dst[b])[k] += host[b][k];
     float ms = 0;
     cudaEventElapsedTime(&ms, events_[0], events_[1]);
     timings_.backward_ms = ms;
@@ -272,6 +261,7 @@ class CudaRasteriser final : public gs::Rasteriser {
   // The latest forward pass, for backward().
   uint64_t generation_ = 0;
   size_t n_ = 0;
+  detail::DeviceGaussians gaussians_;  // the map as uploaded by the latest forward()
   detail::ForwardSettings forward_settings_;
   detail::ForwardState forward_state_;
   DeviceBuffer<float> t_final_, depth_raw_;

@@ -221,4 +221,22 @@ tracking::CameraCalibration to_calibration(const sensor_msgs::CameraInfo& info) 
   return c;
 }
 
+bool from_camera_info_msg(const sensor_msgs::CameraInfo& info, PinholeCamera* camera, std::string* error) {
+  const auto& K = info.K;
+  *camera = PinholeCamera{K[0], K[4], K[2], K[5], static_cast<int>(info.width), static_cast<int>(info.height)};
+  if (!(std::isfinite(K[0]) && std::isfinite(K[4]) && std::isfinite(K[2]) && std::isfinite(K[5]) && K[0] > 0.0 &&
+        K[4] > 0.0) ||
+      camera->width <= 0 || camera->height <= 0) {
+    if (error) *error = "camera_info has no usable pinhole K and size";
+    return false;
+  }
+  return true;
+}
+
+InstanceImage to_instance_image(const LabelImage& labels) {
+  InstanceImage out(labels.width, labels.height, 1, 0);
+  for (size_t i = 0; i < labels.data.size(); ++i) out.data[i] = static_cast<uint16_t>(std::min<uint32_t>(labels.data[i], 0xffff));
+  return out;
+}
+
 }  // namespace dqo::ros_bridge

@@ -52,6 +52,12 @@ size_t count_valid_depth(const DepthImage& depth);
 sensor_msgs::Image to_rgb8_msg(const ImageRgb8& rgb, const std_msgs::Header& header);
 sensor_msgs::Image to_depth_m_msg(const DepthImage& depth, const std_msgs::Header& header);
 
+// The pinhole camera of a rectified CameraInfo (K and the size); false and *error when K is not
+// a usable pinhole (non-positive or non-finite focal lengths, no size).
+bool from_camera_info_msg(const sensor_msgs::CameraInfo& info, PinholeCamera* camera, std::string* error);
+// Label values as a uint16 instance image (values beyond 65535 saturate).
+InstanceImage to_instance_image(const LabelImage& labels);
+
 // The calibration of a CameraInfo, for the undistortion (ROS-free types).
 tracking::CameraCalibration to_calibration(const sensor_msgs::CameraInfo& info);
 

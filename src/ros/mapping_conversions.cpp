@@ -22,18 +22,6 @@ bool finite_pose(const geometry_msgs::Pose& p) {
 
 }  // namespace
 
-bool from_camera_info_msg(const sensor_msgs::CameraInfo& info, PinholeCamera* camera, std::string* error) {
-  const auto& K = info.K;
-  *camera = PinholeCamera{K[0], K[4], K[2], K[5], static_cast<int>(info.width), static_cast<int>(info.height)};
-  if (!(std::isfinite(K[0]) && std::isfinite(K[4]) && std::isfinite(K[2]) && std::isfinite(K[5]) && K[0] > 0.0 &&
-        K[4] > 0.0) ||
-      camera->width <= 0 || camera->height <= 0) {
-    if (error) *error = "camera_info has no usable pinhole K and size";
-    return false;
-  }
-  return true;
-}
-
 bool from_keyframe_msg(const dqo_map::KeyFrame& msg, mapping::MappingKeyframe* out, std::string* error) {
   const std::string what = "keyframe " + std::to_string(msg.id) + ": ";
   std::string why;
@@ -69,10 +57,7 @@ bool from_keyframe_objects_msg(const dqo_map::KeyFrameObjects& msg, mapping::Key
     *error = "keyframe objects " + std::to_string(msg.keyframe_id) + ": " + why;
     return false;
   }
-  out->instance = InstanceImage(labels.width, labels.height, 1, 0);
-  for (size_t i = 0; i < labels.data.size(); ++i) {
-    out->instance.data[i] = static_cast<uint16_t>(std::min<uint32_t>(labels.data[i], 0xffff));
-  }
+  out->instance = to_instance_image(labels);
   return true;
 }
 

@@ -23,10 +23,6 @@
 
 namespace dqo::ros_bridge {
 
-// The pinhole camera of a rectified CameraInfo (K and the size); false and *error when K is not
-// a usable pinhole (non-positive or non-finite focal lengths, no size).
-bool from_camera_info_msg(const sensor_msgs::CameraInfo& info, PinholeCamera* camera, std::string* error);
-
 // A KeyFrame as the mapping stage takes it: rectified pinhole camera, T_wc, RGB and depth in
 // metres. False and *error (naming the keyframe) for an unusable camera_info, pose or image.
 bool from_keyframe_msg(const dqo_map::KeyFrame& msg, mapping::MappingKeyframe* out, std::string* error);

@@ -479,7 +479,7 @@ void MappingNodelet::publish_diagnostics() {
     ready = m.ready();
     gaussians = m.map().size();
     objects = m.list_objects().size();
-    bytes = gaussians * 70;  // the map's attribute arrays (map_file.h: 70 bytes a Gaussian)
+    bytes = m.map().bytes_used();
   });
   const size_t inbox = w->inbox_size();
   double mean_ms = 0.0, max_ms = 0.0;

@@ -110,11 +110,8 @@ bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArr
                         const tracking::Undistorter* undistorter, objects::ObjectKeyFrame* out,
                         DepthImage* depth, InstanceImage* instance, std::vector<std::string>* warnings,
                         std::string* error) {
-  const auto& K = kf.camera_info.K;
-  const PinholeCamera camera{K[0], K[4], K[2], K[5], static_cast<int>(kf.camera_info.width),
-                             static_cast<int>(kf.camera_info.height)};
-  if (!(std::isfinite(K[2]) && std::isfinite(K[5]) && K[0] > 0.0 && K[4] > 0.0 && std::isfinite(K[0]) &&
-        std::isfinite(K[4])) || camera.width <= 0 || camera.height <= 0) {
+  PinholeCamera camera;
+  if (!from_camera_info_msg(kf.camera_info, &camera, nullptr)) {
     if (error) *error = "keyframe " + std::to_string(kf.id) + " has no usable camera_info (K and size)";
     return false;
   }
@@ -144,8 +141,7 @@ bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArr
     warnings->push_back(why + ": detections used without their instance image");
     return true;
   }
-  InstanceImage raw(labels.width, labels.height, 1, 0);
-  for (size_t i = 0; i < labels.data.size(); ++i) raw.data[i] = static_cast<uint16_t>(std::min<uint32_t>(labels.data[i], 0xffff));
+  InstanceImage raw = to_instance_image(labels);
   if (!raw.same_size(camera.width, camera.height)) {
     warnings->push_back("instance image is " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
                         ", the camera " + std::to_string(camera.width) + "x" + std::to_string(camera.height) +
