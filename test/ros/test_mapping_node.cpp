@@ -34,6 +34,8 @@
 #include <dqo_map/ObjectArray.h>
 #include <dqo_map/SaveMap.h>
 #include <ros/master.h>
+#include <ros/network.h>
+#include <xmlrpcpp/XmlRpcClient.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 
@@ -208,6 +210,25 @@ fs::path MappingNodeTest::dir_;
 int MappingNodeTest::make_scene_rc_ = -1;
 std::map<uint64_t, size_t> MappingNodeTest::ros_counts_;
 std::string MappingNodeTest::work_dir_of_launch_;
+
+// The PID of a node of this test's master (its URI from lookupNode, then the node's getPid); 0 if
+// unknown.
+int pid_of(const std::string& node) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, true)) return 0;
+  std::string host;
+  uint32_t port = 0;
+  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return 0;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue request, response;
+  request[0] = ros::this_node::getName();
+  if (!client.execute("getPid", request, response) || response.getType() != XmlRpc::XmlRpcValue::TypeArray ||
+      response.size() < 3 || response[2].getType() != XmlRpc::XmlRpcValue::TypeInt)
+    return 0;
+  return static_cast<int>(response[2]);
+}
 
 // Gaussians per object ID of a map file.
 std::map<uint64_t, size_t> counts_of(const dqo::mapping::MapFileContents& map) {
@@ -505,14 +526,17 @@ TEST_F(MappingNodeTest, KilledMappingProcessResumesFromItsAutosave) {
       },
       20.0))
       << "the autosave does not hold the current map";
-  // SIGKILL: no shutdown, no last save. The manager holds both nodelets.
-  // (The pattern's brackets keep it from matching the shell that runs pkill.)
-  ASSERT_EQ(std::system("pkill -KILL -f '__name:=manage[r]' > /dev/null 2>&1"), 0);
+  // SIGKILL: no shutdown, no last save. The manager holds both nodelets. Its PID from this test's
+  // own master (a pattern for pkill would also hit other ROS systems running on the machine).
+  const int manager_pid = pid_of("/dqo_map/manager");
+  ASSERT_GT(manager_pid, 0) << "the manager's PID";
+  ASSERT_EQ(kill(manager_pid, SIGKILL), 0);
   const int before = diag_.count(kMapping);
   ros::WallDuration(1.0).sleep();
   // The same nodelet again, as its own process, with the parameters already on the server.
   const std::string start = std::string("ROS_NAMESPACE=/dqo_map ") + DQO_MAPPING_NODE +
-                            " __name:=mapping > " + (fs::path(work_dir_) / "restarted.log").string() + " 2>&1 &";
+                            " __name:=mapping > " + (fs::path(work_dir_) / "restarted.log").string() + " 2>&1 & echo $! > " +
+                            (fs::path(work_dir_) / "restarted.pid").string();
   ASSERT_EQ(std::system(start.c_str()), 0);
   ASSERT_TRUE(wait_for([&] { return diag_.count(kMapping) > before + 1; }, 60.0)) << "the restarted nodelet reports";
   EXPECT_EQ(diag_.value(kMapping, "gaussians"), gaussians) << "resumed from the autosave";
@@ -532,7 +556,9 @@ TEST_F(MappingNodeTest, KilledMappingProcessResumesFromItsAutosave) {
   EXPECT_TRUE(wait_for([&] { return diag_.value(kMapping, "keyframes mapped") >= 1; }, 60.0))
       << "the restarted nodelet maps new keyframes";
   EXPECT_TRUE(wait_for([&] { return diag_.value(kMapping, "gaussians") > gaussians; }, 30.0));
-  std::system("pkill -INT -f 'mapping_node __name:=mappin[g]' > /dev/null 2>&1");
+  int restarted_pid = 0;
+  std::ifstream(fs::path(work_dir_) / "restarted.pid") >> restarted_pid;
+  if (restarted_pid > 0) kill(restarted_pid, SIGINT);
 }
 
 }  // namespace
