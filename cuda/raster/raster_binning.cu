@@ -6,6 +6,8 @@
 
 #include <cub/cub.cuh>
 
+#include <algorithm>
+
 #include "raster_cuda.h"
 
 namespace dqo::cuda::detail {
@@ -38,23 +40,29 @@ __global__ void tile_ranges_kernel(size_t pairs, const uint64_t* keys, uint2* ra
 }
 
 // Grows *temp to `bytes` (device memory kept between calls: no allocation per frame once warm).
-void ensure(void** temp, size_t* temp_bytes, size_t bytes) {
-  if (bytes <= *temp_bytes) return;
+// A failed allocation is returned: CUB handed a null buffer would only report its size and sort
+// nothing.
+cudaError_t ensure(void** temp, size_t* temp_bytes, size_t bytes) {
+  if (bytes <= *temp_bytes && *temp) return cudaSuccess;
   if (*temp) cudaFree(*temp);
   *temp = nullptr;
   *temp_bytes = 0;
-  if (cudaMalloc(temp, bytes) == cudaSuccess) *temp_bytes = bytes;
+  const cudaError_t err = cudaMalloc(temp, std::max<size_t>(bytes, 1));
+  if (err == cudaSuccess) *temp_bytes = bytes;
+  return err;
 }
 
 }  // namespace
 
-void exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offsets, void** temp, size_t* temp_bytes,
-                    cudaStream_t stream) {
+cudaError_t exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offsets, void** temp,
+                           size_t* temp_bytes, cudaStream_t stream) {
   // Scans n + 1 entries: tile_count[n] is 0 (the caller's), so offsets[n] is the total.
   size_t bytes = 0;
-  cub::DeviceScan::ExclusiveSum(nullptr, bytes, tile_count, offsets, static_cast<int>(n + 1), stream);
-  ensure(temp, temp_bytes, bytes);
-  cub::DeviceScan::ExclusiveSum(*temp, bytes, tile_count, offsets, static_cast<int>(n + 1), stream);
+  cudaError_t err =
+      cub::DeviceScan::ExclusiveSum(nullptr, bytes, tile_count, offsets, static_cast<int>(n + 1), stream);
+  if (err == cudaSuccess) err = ensure(temp, temp_bytes, bytes);
+  if (err != cudaSuccess) return err;
+  return cub::DeviceScan::ExclusiveSum(*temp, bytes, tile_count, offsets, static_cast<int>(n + 1), stream);
 }
 
 void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
@@ -65,17 +73,19 @@ void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects
       n, splats, rects, offsets, tiles_x, keys, values);
 }
 
-void sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out, const uint32_t* values_in,
-                uint32_t* values_out, void** temp, size_t* temp_bytes, cudaStream_t stream) {
-  if (pairs == 0) return;
+cudaError_t sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out,
+                       const uint32_t* values_in, uint32_t* values_out, void** temp, size_t* temp_bytes,
+                       cudaStream_t stream) {
+  if (pairs == 0) return cudaSuccess;
   // Only the bits in use: 32 of depth and as many of tile as there are tiles.
   const int end_bit = 32 + tile_bits;
   size_t bytes = 0;
-  cub::DeviceRadixSort::SortPairs(nullptr, bytes, keys_in, keys_out, values_in, values_out,
-                                  static_cast<int>(pairs), 0, end_bit, stream);
-  ensure(temp, temp_bytes, bytes);
-  cub::DeviceRadixSort::SortPairs(*temp, bytes, keys_in, keys_out, values_in, values_out,
-                                  static_cast<int>(pairs), 0, end_bit, stream);
+  cudaError_t err = cub::DeviceRadixSort::SortPairs(nullptr, bytes, keys_in, keys_out, values_in, values_out,
+                                                    static_cast<int>(pairs), 0, end_bit, stream);
+  if (err == cudaSuccess) err = ensure(temp, temp_bytes, bytes);
+  if (err != cudaSuccess) return err;
+  return cub::DeviceRadixSort::SortPairs(*temp, bytes, keys_in, keys_out, values_in, values_out,
+                                         static_cast<int>(pairs), 0, end_bit, stream);
 }
 
 void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, uint2* ranges, cudaStream_t stream) {

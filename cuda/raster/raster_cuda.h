@@ -94,12 +94,12 @@ void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, 
 void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
                       int tiles_x, uint64_t* keys, uint32_t* values, cudaStream_t stream);
 // Sorts the pairs by key (CUB radix sort; stable, so ties keep the index order), into *_out;
-// `temp` grows as needed.
-void sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out, const uint32_t* values_in,
-                uint32_t* values_out, void** temp, size_t* temp_bytes, cudaStream_t stream);
-// Exclusive scan of tile_count into offsets ([n + 1]: the last is the total).
-void exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offsets, void** temp, size_t* temp_bytes,
-                    cudaStream_t stream);
+// `temp` grows as needed. Returns the first error (an allocation's included).
+cudaError_t sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out, const uint32_t* values_in,
+                       uint32_t* values_out, void** temp, size_t* temp_bytes, cudaStream_t stream);
+// Exclusive scan of tile_count into offsets ([n + 1]: the last is the total); as sort_pairs.
+cudaError_t exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offsets, void** temp,
+                           size_t* temp_bytes, cudaStream_t stream);
 void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, uint2* ranges, cudaStream_t stream);
 // Stage 3: one block per tile, one thread per pixel, front to back with early stop.
 void launch_forward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,

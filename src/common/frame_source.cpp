@@ -1,7 +1,11 @@
 #include "dqo_map/common/frame_source.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <stdexcept>
+#include <string>
+#include <thread>
 #include <utility>
 
 namespace dqo {
@@ -104,6 +108,40 @@ std::optional<Frame> ScaledFrameSource::read_frame(int i, std::string* error) co
   std::optional<Frame> f = source_->read_frame(i, error);
   if (!f) return f;
   return scale_frame(*f, source_->info().camera, info_.camera);
+}
+
+PreloadedFrameSource::PreloadedFrameSource(std::shared_ptr<const FrameSource> source, const std::vector<int>& indices,
+                                           int threads)
+    : source_(std::move(source)) {
+  const int n = static_cast<int>(indices.size());
+  const int workers = std::max(1, std::min(threads > 0 ? threads : static_cast<int>(std::thread::hardware_concurrency()), n));
+  std::vector<std::optional<Frame>> read(indices.size());
+  std::vector<std::string> errors(indices.size());
+  std::atomic<int> next{0};
+  std::vector<std::thread> pool;
+  for (int w = 0; w < workers; ++w) {
+    pool.emplace_back([&] {
+      for (int k = next++; k < n; k = next++) read[k] = source_->read_frame(indices[k], &errors[k]);
+    });
+  }
+  for (std::thread& t : pool) t.join();
+  for (int k = 0; k < n; ++k) {
+    if (!read[k]) throw std::runtime_error("frame " + std::to_string(indices[k]) + ": " + errors[k]);
+    frames_.emplace(indices[k], std::move(*read[k]));
+  }
+}
+
+std::optional<Frame> PreloadedFrameSource::read_frame(int i, std::string* error) const {
+  const auto it = frames_.find(i);
+  if (it != frames_.end()) return it->second;
+  return source_->read_frame(i, error);
+}
+
+size_t PreloadedFrameSource::bytes() const {
+  size_t total = 0;
+  for (const auto& [i, f] : frames_)
+    total += f.rgb.data.size() + f.depth.data.size() * sizeof(float) + f.instance.data.size() * sizeof(f.instance.data[0]);
+  return total;
 }
 
 }  // namespace dqo

@@ -21,11 +21,17 @@ Eigen::Vector4f quaternion_of(const Eigen::Matrix3d& R) {
 
 }  // namespace
 
-GaussianTrainer::GaussianTrainer(const Params& params, std::unique_ptr<Rasteriser> rasteriser)
+GaussianTrainer::GaussianTrainer(const Params& params, std::unique_ptr<Rasteriser> rasteriser,
+                                 std::unique_ptr<TrainingEngine> engine)
     : params_(params),
       rasteriser_(rasteriser ? std::move(rasteriser) : make_cpu_rasteriser(0)),
+      engine_(std::move(engine)),
       adam_(params.adam),
       rng_(params.seed) {}
+
+bool GaussianTrainer::uses_engine() const {
+  return engine_ && params_.lambda_ssim <= 0.f && !params_.train_per_label && params_.adam.lr_opacity <= 0.f;
+}
 
 RenderSettings GaussianTrainer::settings(uint32_t ins_object, bool for_render) const {
   RenderSettings s;
@@ -68,6 +74,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   kf.rgb = to_float_rgb(keyframe.rgb);
   kf.depth = std::move(keyframe.depth);
   kf.labels = std::move(keyframe.labels);
+  kf.key = next_key_++;
   if (kf.labels.empty()) kf.labels = LabelImage(kf.camera.width, kf.camera.height, 1, 0u);
   {
     std::vector<uint32_t> ids(kf.labels.data.begin(), kf.labels.data.end());
@@ -80,14 +87,22 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
 
   // 1-2. Render what the map has, update visibility, add where it is missing or wrong.
   const size_t relabelled_before = relabelled_;
+  auto ms_since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+  };
+  auto t = std::chrono::steady_clock::now();
   if (map_.empty()) {
     add_gaussians(kf, nullptr, &report);
+    report.add_ms = ms_since(t);
   } else {
     RenderOutput out;
     std::unique_ptr<RenderState> state;
     rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0, false), &out, &state);
     review_gaussians(kf, *state);
+    report.review_ms = ms_since(t);
+    t = std::chrono::steady_clock::now();
     add_gaussians(kf, &out, &report);
+    report.add_ms = ms_since(t);
   }
   sync_state();
   report.relabelled = relabelled_ - relabelled_before;
@@ -96,12 +111,15 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   while (static_cast<int>(window_.size()) > std::max(1, params_.window)) window_.pop_front();
 
   // 3. Optimise the unstable Gaussians over the window.
-  for (int it = 0; it < params_.iterations; ++it) {
-    const double loss = iterate(pick_keyframe());
-    if (it == 0) report.loss_first = loss;
-    report.loss_last = loss;
-    ++report.iterations;
+  t = std::chrono::steady_clock::now();
+  report.losses = train(params_.iterations);
+  report.train_ms = ms_since(t);
+  report.iterations = static_cast<int>(report.losses.size());
+  if (!report.losses.empty()) {
+    report.loss_first = report.losses.front();
+    report.loss_last = report.losses.back();
   }
+  t = std::chrono::steady_clock::now();
 
   // Stabilise.
   auto& stable = map_.stable();
@@ -116,6 +134,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
 
   // 4. Prune.
   prune(&report);
+  report.prune_ms = ms_since(t);
 
   report.num_gaussians = map_.size();
   for (size_t i = 0; i < map_.size(); ++i) report.num_unstable += stable[i] ? 0 : 1;
@@ -125,20 +144,58 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
 
 double GaussianTrainer::optimise(int iterations) {
   if (window_.empty() || map_.empty()) return 0.0;
-  double loss = 0.0;
-  for (int it = 0; it < iterations; ++it) loss = iterate(pick_keyframe());
-  return loss;
+  const std::vector<double> losses = train(iterations);
+  return losses.empty() ? 0.0 : losses.back();
 }
 
-const GaussianTrainer::StoredKeyframe& GaussianTrainer::pick_keyframe() {
+std::vector<double> GaussianTrainer::train(int iterations) {
+  if (iterations <= 0 || window_.empty()) return {};
+  if (uses_engine()) return iterate_on_engine(iterations);
+  std::vector<double> losses;
+  losses.reserve(static_cast<size_t>(iterations));
+  for (int it = 0; it < iterations; ++it) losses.push_back(iterate(pick_keyframe()));
+  return losses;
+}
+
+std::vector<double> GaussianTrainer::iterate_on_engine(int iterations) {
+  if (map_.empty()) {  // as the host loop: a keyframe drawn, nothing else
+    for (int it = 0; it < iterations; ++it) pick_keyframe_index();
+    return std::vector<double>(static_cast<size_t>(iterations), 0.0);
+  }
+  // The same draws, in the same order, as the host loop: the two backends see the same
+  // keyframes and objects (their loss curves are compared in the tests).
+  std::vector<TrainingStep> steps(static_cast<size_t>(iterations));
+  for (TrainingStep& step : steps) {
+    step.view = static_cast<uint32_t>(pick_keyframe_index());
+    step.object = pick_object(window_[step.view]);
+  }
+  std::vector<TrainingView> views;
+  views.reserve(window_.size());
+  for (const StoredKeyframe& kf : window_)
+    views.push_back(TrainingView{kf.key, &kf.camera, kf.T_wc.inverse(), &kf.rgb, &kf.depth, &kf.labels});
+  TrainingLoss loss;
+  loss.settings = settings(0, false);
+  loss.lambda_depth = params_.lambda_depth;
+  loss.lambda_ins = params_.lambda_ins;
+  return engine_->run(views, steps, loss, &map_, &adam_);
+}
+
+size_t GaussianTrainer::pick_keyframe_index() {
   const size_t n = window_.size();
   if (params_.newest_share <= 0.f || n == 1) {
-    return window_[std::uniform_int_distribution<size_t>(0, n - 1)(rng_)];
+    return std::uniform_int_distribution<size_t>(0, n - 1)(rng_);
   }
   if (std::uniform_real_distribution<float>(0.f, 1.f)(rng_) < params_.newest_share) {
-    return window_.back();
+    return n - 1;
   }
-  return window_[std::uniform_int_distribution<size_t>(0, n - 2)(rng_)];
+  return std::uniform_int_distribution<size_t>(0, n - 2)(rng_);
+}
+
+uint32_t GaussianTrainer::pick_object(const StoredKeyframe& kf) {
+  if (params_.lambda_ins > 0.f && !kf.objects.empty()) {
+    return kf.objects[std::uniform_int_distribution<size_t>(0, kf.objects.size() - 1)(rng_)];
+  }
+  return 0;
 }
 
 // One backward pass with dL/d(rgb) = (1, [label = 0], [label != 0]) gives, per Gaussian, in its
@@ -370,10 +427,7 @@ void GaussianTrainer::add_gaussian_at(const StoredKeyframe& kf, int u, int v, in
 
 double GaussianTrainer::iterate(const StoredKeyframe& kf) {
   if (map_.empty()) return 0.0;
-  uint32_t object = 0;
-  if (params_.lambda_ins > 0.f && !kf.objects.empty()) {
-    object = kf.objects[std::uniform_int_distribution<size_t>(0, kf.objects.size() - 1)(rng_)];
-  }
+  const uint32_t object = pick_object(kf);
   const SE3 T_cw = kf.T_wc.inverse();
   const RenderSettings s = settings(object, false);
   RenderOutput out;
@@ -552,6 +606,7 @@ size_t GaussianTrainer::relabel(uint32_t from, uint32_t to) {
       }
     }
     if (!changed) continue;
+    kf.key = next_key_++;  // the engine's copy of the labels is stale
     kf.objects.erase(std::remove(kf.objects.begin(), kf.objects.end(), from), kf.objects.end());
     if (to != 0 && std::find(kf.objects.begin(), kf.objects.end(), to) == kf.objects.end()) {
       kf.objects.insert(std::upper_bound(kf.objects.begin(), kf.objects.end(), to), to);

@@ -2,6 +2,7 @@
 
 #ifdef DQO_MAPPING_CUDA
 #include "dqo_map/cuda/cuda_rasteriser.h"
+#include "dqo_map/cuda/cuda_training_engine.h"
 #include "dqo_map/cuda/device_info.h"
 #endif
 
@@ -22,25 +23,47 @@ bool fail(std::string* error, const std::string& message) {
   return false;
 }
 
-std::unique_ptr<gs::Rasteriser> make_rasteriser(const GaussianMapperParams& p) {
-  switch (p.backend) {
+// The backend the parameters ask for: the rasteriser, and on the GPU the training engine too.
+struct TrainerBackend {
+  std::unique_ptr<gs::Rasteriser> rasteriser;
+  std::unique_ptr<gs::TrainingEngine> engine;
+};
+
+bool use_gpu(Backend backend) {
+  switch (backend) {
     case Backend::kCuda:
 #ifdef DQO_MAPPING_CUDA
       // No silent CPU run when the GPU was asked for: it would be far slower than expected.
       if (!cuda::gpu_available()) throw std::invalid_argument("mapping backend 'cuda': no usable GPU");
-      return cuda::make_cuda_rasteriser();
+      return true;
 #else
       throw std::invalid_argument("mapping backend 'cuda' is not available in this build (no CUDA ring)");
 #endif
     case Backend::kAuto:
 #ifdef DQO_MAPPING_CUDA
-      if (cuda::gpu_available()) return cuda::make_cuda_rasteriser();
+      return cuda::gpu_available();
+#else
+      return false;
 #endif
-      break;
     case Backend::kCpu:
       break;
   }
-  return gs::make_cpu_rasteriser(p.threads);
+  return false;
+}
+
+TrainerBackend make_backend(const GaussianMapperParams& p) {
+  TrainerBackend b;
+#ifdef DQO_MAPPING_CUDA
+  if (use_gpu(p.backend)) {
+    b.rasteriser = cuda::make_cuda_rasteriser();
+    b.engine = cuda::make_cuda_training_engine();
+    return b;
+  }
+#else
+  use_gpu(p.backend);  // throws for `cuda`
+#endif
+  b.rasteriser = gs::make_cpu_rasteriser(p.threads);
+  return b;
 }
 
 }  // namespace
@@ -74,7 +97,8 @@ GaussianMapper::GaussianMapper(const GaussianMapperParams& params)
     : params_(params), params_hash_(mapping::params_hash(mapping_params_to_yaml(params))) {
   gs::GaussianTrainer::Params trainer = params_.trainer;
   trainer.max_gaussians = params_.max_gaussians;
-  trainer_ = std::make_unique<gs::GaussianTrainer>(trainer, make_rasteriser(params_));
+  TrainerBackend backend = make_backend(params_);
+  trainer_ = std::make_unique<gs::GaussianTrainer>(trainer, std::move(backend.rasteriser), std::move(backend.engine));
 }
 
 GaussianMapper::~GaussianMapper() = default;

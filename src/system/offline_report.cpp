@@ -59,6 +59,12 @@ double peak_memory_mb() {
   return usage.ru_maxrss / 1024.0;  // kilobytes on Linux
 }
 
+double mean_final_loss(const OfflineResult& run) {
+  double sum = 0.0;
+  for (const mapping::MappingReport& r : run.reports) sum += r.trainer.loss_last;
+  return run.reports.empty() ? 0.0 : sum / static_cast<double>(run.reports.size());
+}
+
 std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper& mapper,
                          const std::string& input, double mesh_seconds) {
   const double seconds = run.seconds;
@@ -71,7 +77,7 @@ std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper
     << ",\n  \"total_s\": " << seconds << ", \"frames_per_second\": "
     << (seconds > 0 ? run.frames / seconds : 0.0) << ", \"mesh_s\": " << mesh_seconds
     << ",\n  \"peak_memory_mb\": " << peak_memory_mb() << ", \"gaussians\": " << mapper.map().size()
-    << ", \"map_mb\": " << mapper.map().bytes_used() / 1e6
+    << ", \"map_mb\": " << mapper.map().bytes_used() / 1e6 << ", \"mean_final_loss\": " << mean_final_loss(run)
     << ",\n  \"stages\": {\n    \"read\": " << stage_json(run.timings.read_ms)
     << ",\n    \"pose\": " << stage_json(run.timings.pose_ms)
     << ",\n    \"objects\": " << stage_json(run.timings.objects_ms)
@@ -84,7 +90,11 @@ std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper
       << ", \"added\": " << r.trainer.added_missing + r.trainer.added_error << ", \"pruned\": "
       << r.trainer.pruned_stale + r.trainer.pruned_oversized + r.trainer.pruned_invisible +
              r.trainer.pruned_budget
-      << ", \"pruned_budget\": " << r.trainer.pruned_budget << ", \"gaussians\": " << r.num_gaussians
+      << ", \"pruned_budget\": " << r.trainer.pruned_budget << ", \"loss_first\": " << r.trainer.loss_first
+      << ", \"loss_last\": " << r.trainer.loss_last << ", \"label_ms\": " << std::round(r.label_ms * 10) / 10 << ", \"review_ms\": " << std::round(r.trainer.review_ms * 10) / 10
+      << ", \"add_ms\": " << std::round(r.trainer.add_ms * 10) / 10 << ", \"train_ms\": "
+      << std::round(r.trainer.train_ms * 10) / 10 << ", \"prune_ms\": " << std::round(r.trainer.prune_ms * 10) / 10
+      << ", \"gaussians\": " << r.num_gaussians
       << ", \"bytes\": " << r.bytes << ", \"objects\": {";
     bool first_object = true;
     for (const auto& [id, n] : r.gaussians_per_object) {

@@ -4,7 +4,9 @@
 // (sim/scene_frame_source.h), or either at a reduced resolution (ScaledFrameSource). The offline
 // pipeline takes this interface, so that its reduced form builds where io/ (OpenCV) does not.
 
+#include <map>
 #include <memory>
+#include <vector>
 #include <optional>
 #include <string>
 
@@ -46,6 +48,22 @@ class ScaledFrameSource : public FrameSource {
  private:
   std::shared_ptr<const FrameSource> source_;
   DatasetInfo info_;
+};
+
+// Another source's frames `indices`, read (rendered, decoded) up front on `threads` threads and
+// kept in memory, so that a timed run measures the pipeline and not the reading; other frames are
+// read through. Throws std::runtime_error naming the frame that could not be read.
+class PreloadedFrameSource : public FrameSource {
+ public:
+  PreloadedFrameSource(std::shared_ptr<const FrameSource> source, const std::vector<int>& indices, int threads);
+  const DatasetInfo& info() const override { return source_->info(); }
+  int num_frames() const override { return source_->num_frames(); }
+  std::optional<Frame> read_frame(int i, std::string* error = nullptr) const override;
+  size_t bytes() const;  // of the frames held
+
+ private:
+  std::shared_ptr<const FrameSource> source_;
+  std::map<int, Frame> frames_;
 };
 
 }  // namespace dqo

@@ -38,7 +38,7 @@ class GaussianAdam {
   explicit GaussianAdam(const Params& params) : params_(params) {}
 
   const Params& params() const { return params_; }
-  size_t size() const { return steps_.size(); }
+  size_t size() const { return s_.steps.size(); }
 
   // Grows (zero moments for the new Gaussians, which are appended) or shrinks to map.size().
   void resize_for(const GaussianMap& map);
@@ -50,14 +50,21 @@ class GaussianAdam {
   // arrays are laid out as the map's (MapGradients). Empty gradient arrays count as zero.
   void step(const MapGradients& grad, const std::vector<uint8_t>& update, GaussianMap* map);
 
- private:
+  // The moments and each Gaussian's step count, laid out as the map's arrays: for an engine that
+  // runs the steps on a device and hands the state back (cuda/train/).
   struct Moments {
     std::vector<float> m, v;  // width per Gaussian as the attribute
   };
+  struct State {
+    Moments position, log_scale, rotation, opacity, colour;
+    std::vector<uint32_t> steps;
+  };
+  const State& state() const { return s_; }
+  State& mutable_state() { return s_; }  // keep it sized for the map (resize_for)
 
+ private:
   Params params_;
-  Moments position_, log_scale_, rotation_, opacity_, colour_;
-  std::vector<uint32_t> steps_;
+  State s_;
 };
 
 }  // namespace dqo::gs

@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <vector>
 
 #include "dqo_map/gaussians/gaussian_map.h"
@@ -66,6 +67,12 @@ struct MapGradients {
 class RenderState {
  public:
   virtual ~RenderState() = default;
+};
+
+// Thrown by a GPU backend whose device memory ran out (the step that failed is in what()): the
+// caller may free memory (prune the map) and try again; the backend stays usable.
+struct OutOfDeviceMemory : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 
 class Rasteriser {

@@ -30,6 +30,7 @@
 #include "dqo_map/gaussians/losses.h"
 #include "dqo_map/gaussians/pixel_labels.h"
 #include "dqo_map/gaussians/rasteriser.h"
+#include "dqo_map/gaussians/training_engine.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/geometry/se3.h"
 
@@ -57,7 +58,11 @@ struct KeyframeReport {
   size_t missing_pixels = 0, error_pixels = 0;
   int iterations = 0;
   double loss_first = 0.0, loss_last = 0.0;  // total loss of the first and last iteration
+  std::vector<double> losses;                 // of every iteration
   double seconds = 0.0;
+  // Where the time went (ms): the render from the keyframe and the review of the Gaussians
+  // (visibility, labels, usefulness), adding, training, stabilising and pruning.
+  double review_ms = 0.0, add_ms = 0.0, train_ms = 0.0, prune_ms = 0.0;
 };
 
 class GaussianTrainer {
@@ -156,8 +161,16 @@ class GaussianTrainer {
     uint64_t seed = 1;
   };
 
-  // rasteriser null: the CPU one on all cores.
-  explicit GaussianTrainer(const Params& params, std::unique_ptr<Rasteriser> rasteriser = nullptr);
+  // rasteriser null: the CPU one on all cores. engine: where the iterations run (the GPU's,
+  // cuda/train/); null, or for settings it does not cover (uses_engine()), the host runs them
+  // through the rasteriser.
+  explicit GaussianTrainer(const Params& params, std::unique_ptr<Rasteriser> rasteriser = nullptr,
+                           std::unique_ptr<TrainingEngine> engine = nullptr);
+
+  // Whether the iterations run on the engine: there is one and the settings are what it covers
+  // (λ_ssim = 0, no train_per_label, opacity fixed).
+  bool uses_engine() const;
+  const TrainingEngine* engine() const { return engine_.get(); }
 
   const Params& params() const { return params_; }
 
@@ -181,6 +194,7 @@ class GaussianTrainer {
   void set_map(GaussianMap map);
 
   const GaussianMap& map() const { return map_; }
+  const GaussianAdam::State& adam_state() const { return adam_.state(); }
   Rasteriser& rasteriser() { return *rasteriser_; }
 
   // Renders the map: colours as training does; depth of the surfaces (Params::surface_depth) or
@@ -200,6 +214,7 @@ class GaussianTrainer {
     DepthImage depth;
     LabelImage labels;
     std::vector<uint32_t> objects;  // IDs with pixels in `labels`
+    uint64_t key = 0;               // names the images for the engine; new when labels change
   };
 
   // Training and the masks: the normalised depth (normalise_depth); render(): the surface
@@ -214,12 +229,22 @@ class GaussianTrainer {
   // `stride`: the pixel spacing the new Gaussian stands for (its in-plane size).
   void add_gaussian_at(const StoredKeyframe& kf, int u, int v, int stride, bool transparent);
   double iterate(const StoredKeyframe& kf);
-  const StoredKeyframe& pick_keyframe();
+  // `iterations` iterations on the engine, keyframes and objects drawn as iterate() draws them;
+  // the loss of each.
+  std::vector<double> iterate_on_engine(int iterations);
+  size_t pick_keyframe_index();
+  const StoredKeyframe& pick_keyframe() { return window_[pick_keyframe_index()]; }
+  // iterate()'s draw of the object whose L_ins a keyframe trains (0: none).
+  uint32_t pick_object(const StoredKeyframe& kf);
+  // `iterations` iterations wherever they run; the loss of each.
+  std::vector<double> train(int iterations);
   void prune(KeyframeReport* report);
   void sync_state();
 
   Params params_;
   std::unique_ptr<Rasteriser> rasteriser_;
+  std::unique_ptr<TrainingEngine> engine_;
+  uint64_t next_key_ = 1;
   GaussianMap map_;
   GaussianAdam adam_;
   // Per Gaussian, in step with map_.

@@ -19,6 +19,9 @@ double peak_memory_mb();
 
 // timings.json: sizes, totals, frames per second, peak memory, per stage (count, mean, median, max,
 // total, every item) and per mapped keyframe what the mapping stage did.
+// The mean over mapped keyframes of the last training iteration's loss (to compare backends).
+double mean_final_loss(const OfflineResult& run);
+
 std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper& mapper,
                          const std::string& input, double mesh_seconds);
 

@@ -1,0 +1,83 @@
+#pragma once
+// The rasteriser's device pipeline (host side, plain C++ with the CUDA runtime): projection,
+// binning and compositing of Gaussians already on the device into images that stay on the device,
+// and the backward pass of the latest forward one into attribute gradients on the device. Shared
+// by the CUDA rasteriser (which uploads a host map and downloads the images) and the CUDA training
+// engine (whose map and images never leave the device). One stream; device buffers only grow.
+
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <cstdint>
+
+#include "../common/device_buffer.h"
+#include "dqo_map/gaussians/rasteriser.h"
+#include "raster_cuda.h"
+
+namespace dqo::cuda::detail {
+
+// dL/d(attributes) on the device, laid out as the map's arrays.
+struct DeviceAttributeGradients {
+  float* position = nullptr;   // [N*3]
+  float* log_scale = nullptr;  // [N*3]
+  float* rotation = nullptr;   // [N*4]
+  float* opacity = nullptr;    // [N]
+  float* colour = nullptr;     // [N*3]
+};
+
+class RasterPipeline {
+ public:
+  RasterPipeline();
+  ~RasterPipeline();
+  RasterPipeline(const RasterPipeline&) = delete;
+  RasterPipeline& operator=(const RasterPipeline&) = delete;
+
+  cudaStream_t stream() const { return stream_; }
+
+  // Renders `g` from `cam` into images(); keep_state: keeps what backward() needs. Waits for the
+  // (Gaussian, tile) pair count once, to size the sort.
+  void forward(const DeviceGaussians& g, const gs::CameraView<float>& cam, const gs::RenderSettings& settings,
+               bool keep_state);
+  const ForwardImages& images() const { return images_; }
+  size_t pairs() const { return pairs_; }
+
+  // Gradients of the latest forward pass (made with keep_state, on the same `g` and camera) into
+  // `out` (sized for g.count; overwritten). Null output gradients count as zero.
+  void backward(const DeviceGaussians& g, const gs::CameraView<float>& cam, const ImageGradientsDevice& grad_out,
+                const DeviceAttributeGradients& out);
+
+  // GPU milliseconds of the latest forward pass's stages and of the latest backward pass.
+  float project_ms() const { return ms_between(1, 2); }
+  float bin_ms() const { return ms_between(2, 3); }
+  float composite_ms() const { return ms_between(3, 4); }
+  float backward_ms() const { return ms_between(6, 7); }
+  // Events for the caller's own steps around the pipeline (0: before its upload, 5: after its
+  // download; 1-4 and 6-7 are the pipeline's).
+  void mark(int k) { check(cudaEventRecord(events_[k], stream_), "timing"); }
+  float ms_between(int a, int b) const;
+
+ private:
+  cudaStream_t stream_ = nullptr;
+  cudaEvent_t events_[8] = {};
+  size_t n_ = 0, pairs_ = 0;
+  int width_ = 0, height_ = 0;
+  ForwardSettings settings_;
+  ForwardState state_;
+  ForwardImages images_;
+  DeviceBuffer<DeviceSplat> splats_;
+  DeviceBuffer<TileRect> rects_;
+  DeviceBuffer<uint32_t> tile_count_, offsets_, values_, sorted_ids_;
+  DeviceBuffer<uint64_t> keys_, sorted_keys_;
+  DeviceBuffer<uint2> ranges_;
+  DeviceBuffer<float> rgb_, depth_, alpha_, ins_;
+  DeviceBuffer<uint32_t> dominant_;
+  DeviceBuffer<float> t_final_, depth_raw_;
+  DeviceBuffer<uint32_t> n_contrib_;
+  DeviceBuffer<gs::SurfaceAccum<float>> surface_;
+  DeviceBuffer<Grad2D> grad2d_;
+  void* scan_temp_ = nullptr;
+  void* sort_temp_ = nullptr;
+  size_t scan_temp_bytes_ = 0, sort_temp_bytes_ = 0;
+};
+
+}  // namespace dqo::cuda::detail

@@ -1,0 +1,60 @@
+#pragma once
+// Kernels of the CUDA training engine (cuda_training_engine.cpp sequences them around the
+// rasteriser's device pipeline): the per-pixel losses with their output gradients, and the sparse
+// Adam step with the confidence count. The per-value maths is the host trainer's (losses.cpp,
+// math/adam_step.h).
+
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <cstdint>
+
+namespace dqo::cuda::detail {
+
+// One training view's images on the device.
+struct DeviceView {
+  const float* rgb = nullptr;       // [P*3] in [0, 1]
+  const float* depth = nullptr;     // [P] metres; 0 / NaN: none
+  const uint32_t* labels = nullptr; // [P]
+};
+
+struct LossFactors {
+  float rgb = 0.f;    // dL/d(rgb) magnitude per value: 1 / (3 P)
+  float depth = 0.f;  // λ_d / (pixels with depth); 0: no depth term
+  float ins = 0.f;    // λ_ins / P; 0 or object 0: no instance term
+  uint32_t object = 0;
+};
+
+// Per pixel: the L1 colour, depth and instance terms of the rendered images against the view
+// (the host's l1_rgb_loss, l1_depth_loss, ins_loss with unit weights), their gradients written to
+// grad_* (every pixel; grad_depth / grad_ins may be null when their factor is 0), and the three
+// sums of absolute errors added to sums[0..2] (double atomics).
+void launch_losses(size_t pixels, const float* rgb, const float* depth, const float* ins, const DeviceView& view,
+                   const LossFactors& f, float* grad_rgb, float* grad_depth, float* grad_ins, double* sums,
+                   cudaStream_t stream);
+
+struct AdamRates {
+  float lr_position, lr_log_scale, lr_rotation, lr_colour;
+  float beta1, beta2, epsilon;
+  bool normalise_rotation, clamp_colour;
+};
+
+// The trainable map and its optimiser state on the device.
+struct DeviceTrainable {
+  size_t count = 0;
+  float* position = nullptr;    // [N*3]
+  float* log_scale = nullptr;   // [N*3]
+  float* rotation = nullptr;    // [N*4]
+  float* colour = nullptr;      // [N*3]
+  float* confidence = nullptr;  // [N]
+  const uint8_t* stable = nullptr;  // [N]
+  float* m[4] = {};  // first moments: position, log-scale, rotation, colour
+  float* v[4] = {};  // second moments
+  uint32_t* steps = nullptr;  // [N]
+};
+
+// One step on every unstable Gaussian with a non-zero gradient (GaussianTrainer::iterate's rule).
+void launch_adam(const DeviceTrainable& t, const float* grad_position, const float* grad_log_scale,
+                 const float* grad_rotation, const float* grad_colour, const AdamRates& rates, cudaStream_t stream);
+
+}  // namespace dqo::cuda::detail

@@ -1,0 +1,60 @@
+#pragma once
+// Where the trainer's iterations run when not on the host. GaussianTrainer keeps the map and does
+// the once-per-keyframe work itself (the render for the masks, adding, pruning, relabelling); an
+// engine runs a batch of its iterations — forward, the losses, backward, Adam, confidence — with
+// the map, the optimiser state and the window's images where it computes (the GPU: cuda/train/),
+// and hands the map and the optimiser state back once at the end of the batch.
+//
+// An iteration is the trainer's host iteration (GaussianTrainer::iterate) with L_rgb = L1
+// (λ_ssim = 0), one backward pass over all pixels (no train_per_label) and opacity fixed
+// (lr_opacity = 0): the trainer asks the engine only for batches of that kind.
+
+#include <cstdint>
+#include <vector>
+
+#include "dqo_map/common/image.h"
+#include "dqo_map/gaussians/adam.h"
+#include "dqo_map/gaussians/gaussian_map.h"
+#include "dqo_map/gaussians/losses.h"
+#include "dqo_map/gaussians/rasteriser.h"
+#include "dqo_map/geometry/pinhole_camera.h"
+#include "dqo_map/geometry/se3.h"
+
+namespace dqo::gs {
+
+// One keyframe of the window. `key` names its images: the same key, the same images (an engine
+// may keep them from batch to batch); the trainer gives a keyframe a new key when its labels change.
+struct TrainingView {
+  uint64_t key = 0;
+  const PinholeCamera* camera = nullptr;
+  SE3 T_cw;                             // world to camera (the pose may change between batches)
+  const ImageF* rgb = nullptr;          // 3 channels in [0, 1]
+  const DepthImage* depth = nullptr;    // metres; 0 / NaN: no measurement
+  const LabelImage* labels = nullptr;   // object ID per pixel
+};
+
+// Iteration k trains on views[view] with L_ins on `object` (0: no L_ins).
+struct TrainingStep {
+  uint32_t view = 0;
+  uint32_t object = 0;
+};
+
+struct TrainingLoss {
+  RenderSettings settings;  // as the trainer renders for training; ins_object is set per step
+  float lambda_depth = 0.f;
+  float lambda_ins = 0.f;
+};
+
+class TrainingEngine {
+ public:
+  virtual ~TrainingEngine() = default;
+  // Runs `steps` in order on `map` (its unstable Gaussians: those a step's gradient reaches move,
+  // and their confidence grows by one) with `adam`'s rates and state; returns each step's loss.
+  // Throws OutOfDeviceMemory when the device is full (map and adam then are as before the batch).
+  virtual std::vector<double> run(const std::vector<TrainingView>& views, const std::vector<TrainingStep>& steps,
+                                  const TrainingLoss& loss, GaussianMap* map, GaussianAdam* adam) = 0;
+  // Device bytes held now (buffers, cached images), for diagnostics.
+  virtual size_t device_bytes() const = 0;
+};
+
+}  // namespace dqo::gs
