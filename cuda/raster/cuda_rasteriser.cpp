@@ -33,6 +33,17 @@ class CudaRasteriser final : public gs::Rasteriser {
   void forward(const gs::GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
                const gs::RenderSettings& settings, gs::RenderOutput* out,
                std::unique_ptr<gs::RenderState>* state) override {
+    render(map, false, camera, T_cw, settings, out, state);
+  }
+
+  void forward_same_gaussians(const gs::GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
+                              const gs::RenderSettings& settings, gs::RenderOutput* out,
+                              std::unique_ptr<gs::RenderState>* state) override {
+    render(map, true, camera, T_cw, settings, out, state);
+  }
+
+  void render(const gs::GaussianMap& map, bool same_gaussians, const PinholeCamera& camera, const SE3& T_cw,
+              const gs::RenderSettings& settings, gs::RenderOutput* out, std::unique_ptr<gs::RenderState>* state) {
     if (state) state->reset();
     ++generation_;
     n_ = 0;  // no backward() for this pass unless it completes
@@ -40,15 +51,19 @@ class CudaRasteriser final : public gs::Rasteriser {
     const size_t n = map.size();
     const size_t pixels = static_cast<size_t>(camera.width) * camera.height;
     pipe_.mark(0);
-    detail::DeviceGaussians g;
+    detail::DeviceGaussians g = gaussians_;
+    if (!same_gaussians || uploaded_ != n) {
+      uploaded_ = 0;
+      g.position = upload(&position_, map.positions(), "positions", stream);
+      g.log_scale = upload(&log_scale_, map.log_scales(), "log-scales", stream);
+      g.rotation = upload(&rotation_, map.rotations(), "rotations", stream);
+      g.opacity = upload(&opacity_, map.opacities(), "opacities", stream);
+      g.colour = upload(&colour_, map.colours(), "colours", stream);
+    }
     g.count = n;
-    g.position = upload(&position_, map.positions(), "positions", stream);
-    g.log_scale = upload(&log_scale_, map.log_scales(), "log-scales", stream);
-    g.rotation = upload(&rotation_, map.rotations(), "rotations", stream);
-    g.opacity = upload(&opacity_, map.opacities(), "opacities", stream);
-    g.colour = upload(&colour_, map.colours(), "colours", stream);
     g.object_id = upload(&object_id_, map.object_ids_per_gaussian(), "object IDs", stream);
     g.type = upload(&type_, map.types(), "types", stream);
+    uploaded_ = n;
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
     pipe_.forward(g, cam, settings, state != nullptr);
     const detail::ForwardImages& img = pipe_.images();
@@ -128,6 +143,7 @@ class CudaRasteriser final : public gs::Rasteriser {
   uint64_t generation_ = 0;
   size_t n_ = 0;
   detail::DeviceGaussians gaussians_;  // the map as uploaded by the latest forward()
+  size_t uploaded_ = 0;                // Gaussians on the device (0: none, or an upload failed)
   DeviceBuffer<float> v_rgb_, v_depth_, v_alpha_, v_ins_;
   DeviceBuffer<float> g_position_, g_log_scale_, g_rotation_, g_opacity_, g_colour_;
 };

@@ -15,18 +15,22 @@ namespace dqo::cuda::detail {
 namespace {
 
 __global__ void emit_keys_kernel(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
-                                 int tiles_x, uint64_t* keys, uint32_t* values) {
+                                 int width, int height, uint64_t* keys, uint32_t* values) {
+  const int tiles_x = (width + kTileSize - 1) / kTileSize;
   const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i >= n) return;
   const uint32_t begin = offsets[i], end = offsets[i + 1];
   if (begin == end) return;
   const TileRect t = rects[i];
-  const uint64_t depth_bits = __float_as_uint(splats[i].depth);
+  const DeviceSplat s = splats[i];
+  const uint64_t depth_bits = __float_as_uint(s.depth);
   uint32_t k = begin;
-  for (int ty = t.y0; ty <= t.y1; ++ty) {
-    for (int tx = t.x0; tx <= t.x1; ++tx, ++k) {
+  for (int ty = t.y0; ty <= t.y1 && k < end; ++ty) {
+    for (int tx = t.x0; tx <= t.x1 && k < end; ++tx) {
+      if (!tile_reached(s, tx, ty, width, height)) continue;
       keys[k] = (static_cast<uint64_t>(ty * tiles_x + tx) << 32) | depth_bits;
       values[k] = static_cast<uint32_t>(i);
+      ++k;
     }
   }
 }
@@ -66,11 +70,11 @@ cudaError_t exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offse
 }
 
 void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
-                      int tiles_x, uint64_t* keys, uint32_t* values, cudaStream_t stream) {
+                      int width, int height, uint64_t* keys, uint32_t* values, cudaStream_t stream) {
   if (n == 0) return;
   constexpr int kBlock = 256;
   emit_keys_kernel<<<static_cast<unsigned>((n + kBlock - 1) / kBlock), kBlock, 0, stream>>>(
-      n, splats, rects, offsets, tiles_x, keys, values);
+      n, splats, rects, offsets, width, height, keys, values);
 }
 
 cudaError_t sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out,

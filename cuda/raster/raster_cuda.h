@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "dqo_map/gaussians/math/alpha.h"
 #include "dqo_map/gaussians/math/composite.h"
 #include "dqo_map/gaussians/math/project_gaussian.h"
 
@@ -45,6 +46,17 @@ struct DeviceSplat {
 struct TileRect {
   int x0, y0, x1, y1;  // inclusive tiles; tile_count 0 when culled
 };
+
+// Whether a splat's α ≥ 1/255 ellipse reaches tile (tx, ty) of a width × height image: the CPU
+// binning's question (src/gaussians/raster_binning.cpp), asked by projection (to count) and by
+// the key emission (to emit).
+#ifdef __CUDACC__
+__device__ __forceinline__ bool tile_reached(const DeviceSplat& s, int tx, int ty, int width, int height) {
+  return gs::ellipse_reaches_rect(s.conic, s.mean2d, s.opacity, float(tx * kTileSize), float(ty * kTileSize),
+                                  float(min(tx * kTileSize + kTileSize - 1, width - 1)),
+                                  float(min(ty * kTileSize + kTileSize - 1, height - 1)));
+}
+#endif
 
 struct ForwardSettings {
   bool surface_depth = false;
@@ -92,7 +104,7 @@ void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, 
 // Stage 2: one (tile << 32 | depth bits, index) pair per Gaussian and tile it touches, written at
 // offsets[i] (the exclusive scan of tile_count), then (after the sort) each tile's range.
 void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
-                      int tiles_x, uint64_t* keys, uint32_t* values, cudaStream_t stream);
+                      int width, int height, uint64_t* keys, uint32_t* values, cudaStream_t stream);
 // Sorts the pairs by key (CUB radix sort; stable, so ties keep the index order), into *_out;
 // `temp` grows as needed. Returns the first error (an allocation's included).
 cudaError_t sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out, const uint32_t* values_in,

@@ -60,7 +60,7 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   uint32_t* values = values_.ensure(pairs, "values");
   uint64_t* sorted_keys = sorted_keys_.ensure(pairs, "sorted keys");
   uint32_t* sorted_ids = sorted_ids_.ensure(pairs, "sorted IDs");
-  launch_emit_keys(n, splats, rects, offsets, tiles_x, keys, values, stream_);
+  launch_emit_keys(n, splats, rects, offsets, width, height, keys, values, stream_);
   int tile_bits = 1;
   while ((size_t{1} << tile_bits) < tiles) ++tile_bits;
   check(sort_pairs(pairs, tile_bits, keys, sorted_keys, values, sorted_ids, &sort_temp_, &sort_temp_bytes_, stream_),

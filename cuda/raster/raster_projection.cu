@@ -1,6 +1,7 @@
 // Stage 1 of the CUDA rasteriser: every Gaussian through project_gaussian() (math/), culled by the
 // image bounds, with the tiles of its 3σ square that its α ≥ 1/255 box reaches — the CPU
-// reference's rule (src/gaussians/raster_projection.cpp), so both bin a Gaussian into the same tiles.
+// reference's rule (src/gaussians/raster_projection.cpp) — and how many of them its ellipse
+// reaches (the pairs it will have; the binning's rule, raster_cuda.h's tile_reached()).
 
 #include "raster_cuda.h"
 
@@ -35,7 +36,7 @@ __global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uin
   const TileRect t{max(px0, bx0) / kTileSize, max(py0, by0) / kTileSize, min(px1, bx1) / kTileSize,
                    min(py1, by1) / kTileSize};
   if (t.x0 > t.x1 || t.y0 > t.y1) return;
-  DeviceSplat& s = splats[i];
+  DeviceSplat s;
   s.mean2d = p.mean2d;
   s.conic = p.conic;
   s.opacity = opacity;
@@ -44,8 +45,14 @@ __global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uin
   s.object_id = g.object_id[i];
   s.counts_for_ins = ins_object != 0 && g.object_id[i] == ins_object &&
                      g.type[i] == kOpaqueType;
+  splats[i] = s;
   rects[i] = t;
-  tile_count[i] = static_cast<uint32_t>((t.x1 - t.x0 + 1) * (t.y1 - t.y0 + 1));
+  // Only the tiles its α ≥ 1/255 ellipse reaches (as the CPU binning: math/alpha.h).
+  uint32_t count = 0;
+  for (int ty = t.y0; ty <= t.y1; ++ty)
+    for (int tx = t.x0; tx <= t.x1; ++tx)
+      count += tile_reached(s, tx, ty, width, height) ? 1u : 0u;
+  tile_count[i] = count;
 }
 
 }  // namespace

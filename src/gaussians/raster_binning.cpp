@@ -4,9 +4,11 @@
 // (positive IEEE floats order like their bits) over an index-ordered input: ties keep index order,
 // so the result depends on insertion order only through exact depth ties.
 
+#include <algorithm>
 #include <cstring>
 #include <type_traits>
 
+#include "dqo_map/gaussians/math/alpha.h"
 #include "raster_internal.h"
 
 namespace dqo::gs::detail {
@@ -50,19 +52,38 @@ void bin_gaussians(const ProjectedSet<S>& projected, int width, int height, Tile
   std::vector<uint32_t> order = projected.visible_ids;
   sort_by_depth(projected.splats, &order);
 
+  // Only the tiles of its square that the Gaussian's α ≥ 1/255 ellipse reaches (the CUDA binning
+  // asks the same question: math/alpha.h).
+  auto reaches = [&](uint32_t id, int tx, int ty) {
+    const Splat<S>& s = projected.splats[id];
+    return ellipse_reaches_rect(s.conic, s.mean2d, s.opacity, S(tx * kTileSize), S(ty * kTileSize),
+                                S(std::min(tx * kTileSize + kTileSize - 1, width - 1)),
+                                S(std::min(ty * kTileSize + kTileSize - 1, height - 1)));
+  };
   bins->offsets.assign(tiles + 1, 0);
-  for (uint32_t id : order) {
+  std::vector<uint8_t> hit;  // per Gaussian of `order`, per tile of its rectangle
+  std::vector<size_t> first_hit(order.size() + 1, 0);
+  for (size_t k = 0; k < order.size(); ++k) {
+    const uint32_t id = order[k];
     const PixelBox& r = projected.tile_rect[id];
+    first_hit[k] = hit.size();
     for (int ty = r.y0; ty <= r.y1; ++ty)
-      for (int tx = r.x0; tx <= r.x1; ++tx) ++bins->offsets[ty * bins->tiles_x + tx + 1];
+      for (int tx = r.x0; tx <= r.x1; ++tx) {
+        const bool h = reaches(id, tx, ty);
+        hit.push_back(h ? 1 : 0);
+        if (h) ++bins->offsets[ty * bins->tiles_x + tx + 1];
+      }
   }
   for (size_t t = 0; t < tiles; ++t) bins->offsets[t + 1] += bins->offsets[t];
   bins->ids.resize(bins->offsets[tiles]);
   std::vector<uint32_t> cursor(bins->offsets.begin(), bins->offsets.end() - 1);
-  for (uint32_t id : order) {
+  for (size_t k = 0; k < order.size(); ++k) {
+    const uint32_t id = order[k];
     const PixelBox& r = projected.tile_rect[id];
+    size_t h = first_hit[k];
     for (int ty = r.y0; ty <= r.y1; ++ty)
-      for (int tx = r.x0; tx <= r.x1; ++tx) bins->ids[cursor[ty * bins->tiles_x + tx]++] = id;
+      for (int tx = r.x0; tx <= r.x1; ++tx)
+        if (hit[h++]) bins->ids[cursor[ty * bins->tiles_x + tx]++] = id;
   }
 }
 

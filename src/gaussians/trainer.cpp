@@ -95,14 +95,25 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
     add_gaussians(kf, nullptr, &report);
     report.add_ms = ms_since(t);
   } else {
-    RenderOutput out;
-    std::unique_ptr<RenderState> state;
-    rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0, false), &out, &state);
-    review_gaussians(kf, *state);
-    report.review_ms = ms_since(t);
-    t = std::chrono::steady_clock::now();
-    add_gaussians(kf, &out, &report);
-    report.add_ms = ms_since(t);
+    // Added only where the render could be made: a map the device cannot render gets no more.
+    with_memory_retry(
+        [&] {
+          KeyframeReport attempt;
+          RenderOutput out;
+          std::unique_ptr<RenderState> state;
+          t = std::chrono::steady_clock::now();
+          rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0, false), &out, &state);
+          review_gaussians(kf, *state);
+          report.review_ms = ms_since(t);
+          t = std::chrono::steady_clock::now();
+          // Into a scratch report first: a pass that fails half-way must not count its Gaussians
+          // twice (what it added stays; the retry only adds where the map is still missing).
+          attempt = report;
+          add_gaussians(kf, &out, &attempt);
+          report = attempt;
+          report.add_ms = ms_since(t);
+        },
+        &report);
   }
   sync_state();
   report.relabelled = relabelled_ - relabelled_before;
@@ -112,7 +123,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
 
   // 3. Optimise the unstable Gaussians over the window.
   t = std::chrono::steady_clock::now();
-  report.losses = train(params_.iterations);
+  with_memory_retry([&] { report.losses = train(params_.iterations); }, &report);
   report.train_ms = ms_since(t);
   report.iterations = static_cast<int>(report.losses.size());
   if (!report.losses.empty()) {
@@ -140,6 +151,40 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   for (size_t i = 0; i < map_.size(); ++i) report.num_unstable += stable[i] ? 0 : 1;
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;
+}
+
+template <typename Step>
+bool GaussianTrainer::with_memory_retry(Step step, KeyframeReport* report) {
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    try {
+      step();
+      return true;
+    } catch (const OutOfDeviceMemory& e) {
+      report->device_error = e.what();
+      if (attempt == 0) report->pruned_memory += shrink(0.25);
+    }
+  }
+  return false;
+}
+
+size_t GaussianTrainer::shrink(double fraction) {
+  sync_state();
+  const size_t n = map_.size();
+  const size_t drop = static_cast<size_t>(fraction * static_cast<double>(n));
+  if (drop == 0) return 0;
+  std::vector<uint32_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
+  const auto& ids = map_.object_ids_per_gaussian();
+  const auto score = [&](uint32_t i) {
+    return ids[i] != 0 ? params_.budget_object_weight * usefulness_[i] : usefulness_[i];
+  };
+  std::nth_element(order.begin(), order.begin() + drop, order.end(), [&score](uint32_t a, uint32_t b) {
+    const float sa = score(a), sb = score(b);
+    return sa < sb || (sa == sb && a < b);
+  });
+  std::vector<uint8_t> remove(n, 0);
+  for (size_t k = 0; k < drop; ++k) remove[order[k]] = 1;
+  return remove_if(remove);
 }
 
 double GaussianTrainer::optimise(int iterations) {
@@ -313,9 +358,10 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
     }
     // Mask_geo also holds the pixels of object k where k's instance opacity is low.
     const SE3 T_cw = kf.T_wc.inverse();
+    // The Gaussians are as the review's render had them (it relabels, nothing moves).
     for (const uint32_t id : kf.objects) {
       RenderOutput ins;
-      rasteriser_->forward(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
+      rasteriser_->forward_same_gaussians(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
       for (size_t p = 0; p < n; ++p) {
         if (kf.labels.data[p] == id && !missing[p] && ins.ins[p] < params_.ins_threshold) {
           error[p] = 1;

@@ -1,6 +1,8 @@
 #include "dqo_map/mapping/mapping_worker.h"
 
+#include <exception>
 #include <optional>
+#include <string>
 #include <utility>
 
 namespace dqo::mapping {
@@ -70,7 +72,18 @@ void MappingWorker::run() {
       std::lock_guard<TicketLock> lock(mapper_mutex_);
       for (Input& input : batch) hand_over(input, &errors);
       if (flush) mapper_.flush();
-      report = mapper_.process_next();
+      // A step that throws (the GPU failing beyond running out of memory, which the trainer
+      // handles) loses its keyframe, not the worker.
+      try {
+        report = mapper_.process_next();
+      } catch (const std::exception& e) {
+        errors.push_back(std::string("mapping step failed, keyframe skipped: ") + e.what());
+      }
+      if (report && !report->trainer.device_error.empty()) {
+        errors.push_back("keyframe " + std::to_string(report->keyframe_id) + ": out of device memory (" +
+                         report->trainer.device_error + "): removed the least useful " +
+                         std::to_string(report->trainer.pruned_memory) + " Gaussians and went on");
+      }
       more = mapper_.ready() > 0;
     }
     {

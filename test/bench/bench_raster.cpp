@@ -10,6 +10,13 @@
 // (and, on the CPU, backward) — what gsplat_bench.py times on the same files:
 //
 //   bench_raster --map MAP.ply --camera MAP.camera.txt [--backend cpu|cuda] [--repeats 50] [--threads T]
+//
+// The mapping step's cost as the map grows (issue 12): with --keyframes K, the map is the
+// trainer's and K + 1 keyframes rendered from it (from poses 2 cm and 0.5° apart around the
+// camera) go through GaussianTrainer::add_keyframe with the default parameters (the first one
+// warms up); the median milliseconds of the step and of its parts:
+//
+//   bench_raster --map MAP.ply --camera MAP.camera.txt --backend cuda --keyframes 5
 
 #include <algorithm>
 #include <chrono>
@@ -25,8 +32,10 @@
 
 #include "dqo_map/gaussians/gaussian_ply.h"
 #include "dqo_map/gaussians/rasteriser.h"
+#include "dqo_map/gaussians/trainer.h"
 #ifdef DQO_BENCH_CUDA
 #include "dqo_map/cuda/cuda_rasteriser.h"
+#include "dqo_map/cuda/cuda_training_engine.h"
 #endif
 #include <fstream>
 #include <map>
@@ -133,8 +142,66 @@ double median_of(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
+
+// The mapping step on a map of the given size (--keyframes): see the header.
+int bench_keyframes(const GaussianMap& map, const PinholeCamera& cam, const SE3& T_cw, const std::string& backend,
+                    int keyframes, int threads) {
+  std::unique_ptr<Rasteriser> rasteriser, truth_renderer;
+  std::unique_ptr<TrainingEngine> engine;
+  if (backend == "cuda") {
+#ifdef DQO_BENCH_CUDA
+    rasteriser = cuda::make_cuda_rasteriser();
+    truth_renderer = cuda::make_cuda_rasteriser();
+    engine = cuda::make_cuda_training_engine();
+#else
+    std::fprintf(stderr, "bench_raster: this build has no CUDA backend\n");
+    return 1;
+#endif
+  } else {
+    rasteriser = make_cpu_rasteriser(threads);
+    truth_renderer = make_cpu_rasteriser(threads);
+  }
+  GaussianTrainer trainer(GaussianTrainer::Params{}, std::move(rasteriser), std::move(engine));
+  trainer.set_map(map);
+  std::vector<double> total, review, add, train, prune;
+  size_t size_after = 0;
+  for (int k = 0; k <= keyframes; ++k) {
+    TrainingKeyframe kf;
+    kf.id = static_cast<uint32_t>(k + 1);
+    kf.camera = cam;
+    const SE3 step(Eigen::Quaterniond(Eigen::AngleAxisd(0.0087 * k, Eigen::Vector3d::UnitY())),
+                   Eigen::Vector3d(0.02 * k, 0.0, 0.0));
+    kf.T_wc = T_cw.inverse() * step;
+    RenderSettings s;
+    s.normalise_depth = true;
+    RenderOutput out;
+    truth_renderer->forward(map, cam, kf.T_wc.inverse(), s, &out, nullptr);
+    const size_t pixels = out.alpha.size();
+    kf.rgb = ImageRgb8(cam.width, cam.height, 3, 0);
+    kf.depth = DepthImage(cam.width, cam.height, 1, 0.f);
+    kf.labels = LabelImage(cam.width, cam.height, 1, 0u);
+    for (size_t p = 0; p < pixels; ++p) {
+      for (int c = 0; c < 3; ++c)
+        kf.rgb.data[3 * p + c] = static_cast<uint8_t>(std::lround(255.f * std::clamp(out.rgb[3 * p + c], 0.f, 1.f)));
+      kf.depth.data[p] = out.alpha[p] > 0.5f ? out.depth[p] : 0.f;
+      kf.labels.data[p] = out.dominant_id[p];
+    }
+    const KeyframeReport r = trainer.add_keyframe(std::move(kf));
+    if (k == 0) continue;  // warm-up
+    total.push_back(r.seconds * 1e3), review.push_back(r.review_ms), add.push_back(r.add_ms);
+    train.push_back(r.train_ms), prune.push_back(r.prune_ms);
+    size_after = r.num_gaussians;
+  }
+  std::printf("keyframe update, %zu Gaussians (%zu after), %dx%d, backend %s, %s, median of %d: %.1f ms "
+              "(review %.1f, add %.1f, train %.1f for %d iterations, prune %.1f)\n",
+              map.size(), size_after, cam.width, cam.height, backend.c_str(),
+              trainer.uses_engine() ? "training engine" : "host iterations", keyframes, median_of(total),
+              median_of(review), median_of(add), median_of(train), trainer.params().iterations, median_of(prune));
+  return 0;
+}
+
 int bench_map(const std::string& map_path, const std::string& camera_path, const std::string& backend, int repeats,
-              int threads) {
+              int threads, int keyframes) {
   std::string error;
   const auto map = load_gaussians_ply(map_path, &error);
   PinholeCamera cam;
@@ -143,6 +210,7 @@ int bench_map(const std::string& map_path, const std::string& camera_path, const
     std::fprintf(stderr, "bench_raster: %s\n", error.c_str());
     return 1;
   }
+  if (keyframes > 0) return bench_keyframes(*map, cam, T_cw, backend, keyframes, threads);
   std::unique_ptr<Rasteriser> r;
   if (backend == "cpu") {
     r = make_cpu_rasteriser(threads);
@@ -217,6 +285,7 @@ int main(int argc, char** argv) {
   int repeats = 5;
   std::string map_path, camera_path, backend = "cpu";
   bool repeats_given = false;
+  int keyframes = 0;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--map"))
       map_path = argv[i + 1];
@@ -228,12 +297,15 @@ int main(int argc, char** argv) {
       counts = parse_list(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--threads"))
       threads = parse_list(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--keyframes"))
+      keyframes = std::max(0, std::atoi(argv[i + 1]));
     else if (!std::strcmp(argv[i], "--repeats"))
       repeats = std::max(1, std::atoi(argv[i + 1])), repeats_given = true;
     else {
       std::fprintf(stderr,
                    "usage: bench_raster [--counts A,B] [--threads A,B] [--repeats N]\n"
-                   "       bench_raster --map MAP.ply --camera MAP.camera.txt [--backend cpu|cuda] [--repeats N]\n");
+                   "       bench_raster --map MAP.ply --camera MAP.camera.txt [--backend cpu|cuda] [--repeats N]\n"
+                   "                    [--keyframes K]\n");
       return 2;
     }
   }
@@ -242,7 +314,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "bench_raster: --map and --camera go together\n");
       return 2;
     }
-    return bench_map(map_path, camera_path, backend, repeats_given ? repeats : 50, threads.empty() ? 0 : threads[0]);
+    return bench_map(map_path, camera_path, backend, repeats_given ? repeats : 50, threads.empty() ? 0 : threads[0],
+                     keyframes);
   }
   const int sizes[][2] = {{320, 240}, {640, 480}};
   std::printf("CPU rasteriser, median of %d runs (ms); loss gradient on rgb, depth and ins\n",

@@ -414,5 +414,43 @@ TEST(GaussianMath, ProjectGaussianAndItsVjp) {
       x, rng, 1e-7, 1e-6);
 }
 
+
+// The tile test of the binning (exact ellipse–tile overlap) is conservative: where it says a
+// rectangle is missed, no pixel centre in it passes evaluate_alpha(), so binning by it changes no
+// pixel. It also misses real tiles (else it would save nothing): thin, tilted ellipses leave
+// corners of their square.
+TEST(Math, EllipseTileTestMissesOnlyWhatNoPixelReaches) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int missed = 0, checked = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    // An ellipse from random axes (0.3-30 px) and angle, and the rectangle of a 16 px tile near it.
+    const double a = 0.3 + 30 * u(rng) * u(rng), b = 0.3 + 30 * u(rng) * u(rng), th = 3.14159 * u(rng);
+    const double c = std::cos(th), s = std::sin(th);
+    const double sxx = a * a * c * c + b * b * s * s, syy = a * a * s * s + b * b * c * c, sxy = (a * a - b * b) * c * s;
+    const double det = sxx * syy - sxy * sxy;
+    const Sym2<float> conic{float(syy / det), float(-sxy / det), float(sxx / det)};
+    const Vec2<float> mean{float(100 * u(rng)), float(100 * u(rng))};
+    const float opacity = float(0.01 + 0.98 * u(rng));
+    const int x0 = int(mean.x + (u(rng) - 0.5) * 4 * std::max(a, b)) - 8, y0 = int(mean.y + (u(rng) - 0.5) * 4 * std::max(a, b)) - 8;
+    const bool reaches = ellipse_reaches_rect(conic, mean, opacity, float(x0), float(y0), float(x0 + 15), float(y0 + 15));
+    if (reaches) continue;
+    ++missed;
+    for (int y = y0; y <= y0 + 15; ++y)
+      for (int x = x0; x <= x0 + 15; ++x) {
+        float alpha, vis;
+        ++checked;
+        ASSERT_FALSE(evaluate_alpha(conic, mean, opacity, float(x), float(y), &alpha, &vis))
+            << "trial " << trial << ": pixel " << x << "," << y << " passes in a missed tile";
+      }
+  }
+  EXPECT_GT(missed, 400) << "the test culls tiles";
+  EXPECT_GT(checked, 400 * 256);
+  // Where the rectangle holds the mean, it always reaches (if the Gaussian can reach 1/255 at all).
+  const Sym2<float> round{0.1f, 0.f, 0.1f};
+  EXPECT_TRUE(ellipse_reaches_rect(round, Vec2<float>{5.f, 5.f}, 0.5f, 0.f, 0.f, 15.f, 15.f));
+  EXPECT_FALSE(ellipse_reaches_rect(round, Vec2<float>{5.f, 5.f}, 0.003f, 0.f, 0.f, 15.f, 15.f)) << "o·255 < 1";
+}
+
 }  // namespace
 }  // namespace dqo::gs

@@ -22,6 +22,7 @@
 #include <deque>
 #include <memory>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "dqo_map/common/image.h"
@@ -54,6 +55,11 @@ struct KeyframeReport {
   size_t relabelled = 0;  // Gaussians whose ID followed the labels (relabel_fraction)
   size_t pruned_stale = 0, pruned_oversized = 0, pruned_invisible = 0;
   size_t pruned_budget = 0;  // removed to keep Params::max_gaussians
+  // The device ran out of memory (its message; empty: it did not): the least useful quarter of
+  // the map was removed (pruned_memory) and the step tried again; a step that failed twice was
+  // skipped (nothing added, or no training for this keyframe).
+  std::string device_error;
+  size_t pruned_memory = 0;
   size_t num_gaussians = 0, num_unstable = 0;
   size_t missing_pixels = 0, error_pixels = 0;
   int iterations = 0;
@@ -239,6 +245,13 @@ class GaussianTrainer {
   // `iterations` iterations wherever they run; the loss of each.
   std::vector<double> train(int iterations);
   void prune(KeyframeReport* report);
+  // Out of device memory: removes the least useful `fraction` of the map by the budget's measure
+  // (as last reviewed: a new render could fail the same way). Returns how many.
+  size_t shrink(double fraction);
+  // Runs `step`; out of device memory, shrinks the map and runs it once more. False when it
+  // failed twice (the report says so).
+  template <typename Step>
+  bool with_memory_retry(Step step, KeyframeReport* report);
   void sync_state();
 
   Params params_;

@@ -78,6 +78,38 @@ DQO_HD bool alpha_extent(const Sym2<T>& cov2d,  // input, low-pass included
   return true;
 }
 
+// The least of q(a, b) = caa a² + 2 cab a b + cbb b² over b in [b0, b1] at a fixed a (cbb > 0),
+// and the sum of its terms' magnitudes there (for a round-off margin).
+template <typename T>
+DQO_HD T quadratic_min_on_segment(T caa, T cab, T cbb, T a, T b0, T b1, T* magnitude) {
+  const T b = hd_min(hd_max(-cab * a / cbb, b0), b1);
+  *magnitude = hd_abs(caa) * a * a + T(2) * hd_abs(cab * a * b) + hd_abs(cbb) * b * b;
+  return caa * a * a + T(2) * cab * a * b + cbb * b * b;
+}
+
+// Whether α can reach 1/255 anywhere in the rectangle [x0, x1] × [y0, y1] of pixel centres (a
+// tile's): the least of dᵀ C d over it (a convex quadratic: zero where the rectangle holds the
+// mean, else on one of its edges) against k = 2 ln(255 o), with margins wider than the round-off
+// of both. Conservative: where it says no, no pixel centre of the rectangle passes
+// evaluate_alpha(), so binning a Gaussian only into the tiles its ellipse reaches (rather than
+// every tile of its square) changes no pixel and saves the visits (issue 12: exact ellipse–tile
+// overlap).
+template <typename T>
+DQO_HD bool ellipse_reaches_rect(const Sym2<T>& conic, const Vec2<T>& mean2d, T opacity, T x0, T y0, T x1, T y1) {
+  if (!(opacity * T(255) > T(1))) return false;
+  if (!(conic.xx > T(0)) || !(conic.yy > T(0))) return true;  // not an ellipse: keep (never here)
+  const T dx0 = x0 - mean2d.x, dx1 = x1 - mean2d.x, dy0 = y0 - mean2d.y, dy1 = y1 - mean2d.y;
+  if (dx0 <= T(0) && dx1 >= T(0) && dy0 <= T(0) && dy1 >= T(0)) return true;
+  T m0, m1, m2, m3;
+  const T q0 = quadratic_min_on_segment(conic.xx, conic.xy, conic.yy, dx0, dy0, dy1, &m0);
+  const T q1 = quadratic_min_on_segment(conic.xx, conic.xy, conic.yy, dx1, dy0, dy1, &m1);
+  const T q2 = quadratic_min_on_segment(conic.yy, conic.xy, conic.xx, dy0, dx0, dx1, &m2);
+  const T q3 = quadratic_min_on_segment(conic.yy, conic.xy, conic.xx, dy1, dx0, dx1, &m3);
+  const T k = T(2) * hd_log(opacity * T(255));
+  const T margin = k * T(1e-3) + T(1e-4) * hd_max(hd_max(m0, m1), hd_max(m2, m3)) + T(0.01);
+  return hd_min(hd_min(q0, q1), hd_min(q2, q3)) <= k + margin;
+}
+
 // The x-interval [*dx_lo, *dx_hi] of offsets d.x = mean.x − px where the power at offset d.y
 // reaches min_power (< 0): a dx² + 2 b dy dx + c dy² ≤ −2 min_power. Returns false where the row
 // misses the ellipse. A CPU loop uses it to visit only the pixels of a row that can pass.

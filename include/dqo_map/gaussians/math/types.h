@@ -98,6 +98,10 @@ DQO_HD T hd_max(T a, T b) {
   return a > b ? a : b;
 }
 template <typename T>
+DQO_HD T hd_abs(T x) {
+  return x < T(0) ? -x : x;
+}
+template <typename T>
 DQO_HD T hd_clamp(T v, T lo, T hi) {
   return v < lo ? lo : (v > hi ? hi : v);
 }
