@@ -103,13 +103,17 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
           std::unique_ptr<RenderState> state;
           t = std::chrono::steady_clock::now();
           rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0, false), &out, &state);
+          const size_t relabelled = relabelled_;
           review_gaussians(kf, *state);
+          // Relabelling moves Gaussians to the end of the map: then the renders for the masks
+          // upload it again.
+          const bool as_rendered = relabelled_ == relabelled;
           report.review_ms = ms_since(t);
           t = std::chrono::steady_clock::now();
           // Into a scratch report first: a pass that fails half-way must not count its Gaussians
           // twice (what it added stays; the retry only adds where the map is still missing).
           attempt = report;
-          add_gaussians(kf, &out, &attempt);
+          add_gaussians(kf, &out, &attempt, as_rendered);
           report = attempt;
           report.add_ms = ms_since(t);
         },
@@ -339,7 +343,7 @@ void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
 }
 
 void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput* out,
-                                    KeyframeReport* report) {
+                                    KeyframeReport* report, bool as_rendered) {
   const int w = kf.camera.width, h = kf.camera.height;
   const size_t n = static_cast<size_t>(w) * h;
   std::vector<uint8_t> missing(n, 1), error(n, 0);  // error: 1 geometry, 2 colour only
@@ -358,10 +362,14 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
     }
     // Mask_geo also holds the pixels of object k where k's instance opacity is low.
     const SE3 T_cw = kf.T_wc.inverse();
-    // The Gaussians are as the review's render had them (it relabels, nothing moves).
     for (const uint32_t id : kf.objects) {
       RenderOutput ins;
-      rasteriser_->forward_same_gaussians(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
+      if (as_rendered) {
+        rasteriser_->forward_same_gaussians(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
+      } else {
+        rasteriser_->forward(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
+        as_rendered = true;
+      }
       for (size_t p = 0; p < n; ++p) {
         if (kf.labels.data[p] == id && !missing[p] && ins.ins[p] < params_.ins_threshold) {
           error[p] = 1;

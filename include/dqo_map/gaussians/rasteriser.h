@@ -86,8 +86,9 @@ class Rasteriser {
                        std::unique_ptr<RenderState>* state) = 0;
 
   // forward() of the map that this rasteriser's latest forward() rendered, whose Gaussians have
-  // not changed since but for their object IDs and types (relabelling): a GPU backend skips
-  // uploading them again. The caller vouches for that; the default renders as forward() does.
+  // not changed since (neither their values nor their order) but for their object IDs and types:
+  // a GPU backend skips uploading them again. The caller vouches for that; the default renders as
+  // forward() does.
   virtual void forward_same_gaussians(const GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
                                       const RenderSettings& settings, RenderOutput* out,
                                       std::unique_ptr<RenderState>* state) {

@@ -231,7 +231,10 @@ class GaussianTrainer {
                         bool usefulness_only = false);
   void relabel_gaussians(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id);
   // out: the render from the keyframe; null when the map is empty (everything is missing).
-  void add_gaussians(const StoredKeyframe& kf, const RenderOutput* out, KeyframeReport* report);
+  // as_rendered: the map is as the rasteriser's latest forward() had it (the renders for the
+  // masks need not upload it again).
+  void add_gaussians(const StoredKeyframe& kf, const RenderOutput* out, KeyframeReport* report,
+                     bool as_rendered = false);
   // `stride`: the pixel spacing the new Gaussian stands for (its in-plane size).
   void add_gaussian_at(const StoredKeyframe& kf, int u, int v, int stride, bool transparent);
   double iterate(const StoredKeyframe& kf);
