@@ -192,11 +192,15 @@ int bench_keyframes(const GaussianMap& map, const PinholeCamera& cam, const SE3&
     train.push_back(r.train_ms), prune.push_back(r.prune_ms);
     size_after = r.num_gaussians;
   }
+  const size_t device_bytes = trainer.engine() ? trainer.engine()->device_bytes() : 0;
   std::printf("keyframe update, %zu Gaussians (%zu after), %dx%d, backend %s, %s, median of %d: %.1f ms "
-              "(review %.1f, add %.1f, train %.1f for %d iterations, prune %.1f)\n",
+              "(review %.1f, add %.1f, train %.1f for %d iterations, prune %.1f); engine device memory %.0f MB "
+              "(%.0f bytes per Gaussian with the window's %zu keyframes)\n",
               map.size(), size_after, cam.width, cam.height, backend.c_str(),
               trainer.uses_engine() ? "training engine" : "host iterations", keyframes, median_of(total),
-              median_of(review), median_of(add), median_of(train), trainer.params().iterations, median_of(prune));
+              median_of(review), median_of(add), median_of(train), trainer.params().iterations, median_of(prune),
+              device_bytes / 1e6, size_after ? static_cast<double>(device_bytes) / size_after : 0.0,
+              trainer.keyframes_stored());
   return 0;
 }
 
