@@ -51,7 +51,7 @@ namespace fs = std::filesystem;
 
 constexpr char kUsage[] =
     "usage: dqo_map_offline INPUT --out DIR [--poses gt|track|FILE] [--labels masks|quadrics|none]\n"
-    "                       [--backend auto|cpu] [--scale S] [--frames N] [--every K]\n"
+    "                       [--backend auto|cpu|cuda] [--scale S] [--frames N] [--every K]\n"
     "                       [--config mapping.yaml] [--tracking-config tracking.yaml]\n"
     "                       [--objects-config objects.yaml] [--max-gaussians N] [--threads T]\n"
     "                       [--no-noise] [--no-meshes] [--background-mesh] [--map FILE] [--preload] [--quiet]\n"
@@ -64,7 +64,7 @@ constexpr char kUsage[] =
     "  --labels masks     pixel labels from the input's instance masks (default where it has them)\n"
     "  --labels quadrics  pixel labels from the objects' ellipsoids and detection boxes\n"
     "  --labels none      no objects: the whole map is background (inputs without detections)\n"
-    "  --backend B        auto (the GPU when one is there) or cpu\n"
+    "  --backend B        auto (the GPU when one is there), cpu or cuda (the GPU or an error)\n"
     "  --scale S          image size factor (e.g. 0.5: half width and height)\n"
     "  --frames N         at most N frames (after --every)\n"
     "  --every K          every K-th frame only\n"
