@@ -103,6 +103,8 @@ Section schema(TrackingConfig& c) {
                                   {"iterations", &t.local_ba.iterations, 1, 1000},
                                   {"fixed_keyframes", &t.local_ba.fixed_keyframes, 0, 1000},
                                   {"synchronous", &t.local_ba.synchronous},
+                                  {"apply_after_frames", &t.local_ba.apply_after_frames, 1, 1000},
+                                  {"deterministic", &t.local_ba.deterministic},
                               },
                               {}},
                       Section{"reloc",

@@ -58,7 +58,11 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
     if (last_ && state_ == TrackingState::kOk) result.T_wc = last_->T_wc;
     return result;
   }
-  apply_ba_results();
+  if (params_.local_ba.deterministic) {
+    apply_due_ba_result(frame_counter_ + 1);
+  } else {
+    apply_ba_results();
+  }
   submit_local_ba();
 
   TrackedFrame frame;

@@ -125,6 +125,12 @@ struct Tracker::Impl {
   std::vector<uint64_t> recent_points_;  // created lately: culled unless re-found
   size_t reloc_cursor_ = 0;
   uint64_t ba_wanted_ = kNoId;  // keyframe whose adjustment waits for the worker
+  // Deterministic mode (LocalBaParams::deterministic): one adjustment outstanding at a time, its
+  // result applied at the start of frame `ba_due_frame_`.
+  bool ba_outstanding_ = false;
+  uint64_t ba_due_frame_ = 0;
+  bool mapping_idle() const;
+  void apply_due_ba_result(uint64_t frame_number);
   // Covariance of the dense odometry since the last keyframe (right perturbation of the current
   // frame relative to it); invalid once a frame went without dense alignment.
   Eigen::Matrix<double, 6, 6> odometry_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();

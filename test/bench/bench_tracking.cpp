@@ -145,6 +145,8 @@ bool run_case(const Case& c, const Options& options, Row* row) {
   params.use_features = options.use_features;
   params.local_ba.enabled = options.local_ba;
   params.local_ba.synchronous = options.sync_ba;
+  // The same figures on any machine load (local BA results enter at fixed frames).
+  params.local_ba.deterministic = true;
   if (options.dense_weight >= 0.0) params.pose.dense_prior_weight = options.dense_weight;
   for (const auto& [name, value] : options.overrides) set_param(&params, name, value);
   dqo::tracking::Tracker tracker(scene->camera, params);

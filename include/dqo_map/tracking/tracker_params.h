@@ -84,6 +84,16 @@ struct LocalBaParams {
   int fixed_keyframes = 10;         // keyframes outside the window that see its points, held fixed
   // Run the adjustment inside track() instead of on the worker (deterministic, for tests).
   bool synchronous = false;
+  // With `deterministic` (below): a result enters the map at the start of the frame this many
+  // frames after the keyframe that asked for it, the tracker waiting for it there if it is late.
+  // Larger hides more of the adjustment behind tracking; smaller applies corrections sooner.
+  int apply_after_frames = 3;
+  // The offline tools (dqo_track, dqo_map_offline, bench_tracking) set it whatever their config
+  // says, so that their output is bit-identical on any machine load: a result
+  // enters the map at the fixed point above, and "mapping is busy" (the keyframe policy) means "a
+  // result is outstanding", not "the thread is still running". The live node leaves it false:
+  // results enter whenever they land, the tracker never waits.
+  bool deterministic = false;
 };
 
 struct RelocParams {
