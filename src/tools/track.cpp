@@ -4,11 +4,15 @@
 // tracking time per frame, the lost frames and, where the dataset has ground truth, the ATE.
 //
 //   dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]
+//             [--camera camera.yaml]
+// Images with lens distortion (camera.yaml's distortion_model and distortion) are undistorted
+// first, as tracking_node does with a CameraInfo.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <future>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -18,6 +22,7 @@
 #include "dqo_map/eval/ate.h"
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/tracking/params_yaml.h"
+#include "dqo_map/tracking/rectified_frame_source.h"
 #include "dqo_map/tracking/tracking_session.h"
 
 namespace {
@@ -26,16 +31,20 @@ using dqo::median;
 
 constexpr char kUsage[] =
     "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]\n"
+    "                 [--camera camera.yaml]\n"
     "  DATASET_DIR        own format (camera.yaml, rgb/), TUM RGB-D (rgb.txt, depth.txt) or Replica\n"
     "  --out traj.txt     the estimated trajectory, TUM format (T_world_camera of tracked frames)\n"
     "  --config FILE      tracking parameters (default: the built-in ones, as config/tracking.yaml)\n"
     "  --frames N         track only the first N frames\n"
-    "  --every K          track every K-th of them (frames 0, K, 2K, ...): larger baselines\n";
+    "  --every K          track every K-th of them (frames 0, K, 2K, ...): larger baselines\n"
+    "  --camera FILE      a TUM sequence's intrinsics and distortion from FILE, not its camera.yaml\n"
+    "                     (e.g. config/cameras/tum_fr1.yaml)\n";
 
 struct Options {
   std::string dataset;
   std::string out;
   std::string config;
+  std::string camera;
   int frames = -1;
   int every = 1;
 };
@@ -56,11 +65,13 @@ int main(int argc, char** argv) {
     if (a == "-h" || a == "--help") {
       std::fputs(kUsage, stdout);
       return 0;
-    } else if (a == "--out" || a == "--config" || a == "--frames" || a == "--every") {
+    } else if (a == "--out" || a == "--config" || a == "--frames" || a == "--every" ||
+               a == "--camera") {
       const char* v = value();
       if (!v) return usage_error(a + " needs a value");
       if (a == "--out") o.out = v;
       if (a == "--config") o.config = v;
+      if (a == "--camera") o.camera = v;
       if (a == "--frames") {
         char* end = nullptr;
         const long n = std::strtol(v, &end, 10);
@@ -102,7 +113,18 @@ int main(int argc, char** argv) {
   }
   dqo::DatasetReaderParams reader_params;
   reader_params.load_meshes = false;
-  const auto reader = dqo::open_dataset(o.dataset, reader_params, &error);
+  reader_params.tum.camera_file = o.camera;
+  const std::shared_ptr<const dqo::DatasetReader> dataset =
+      dqo::open_dataset(o.dataset, reader_params, &error);
+  if (!dataset) {
+    std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
+    return 1;
+  }
+  if (!o.camera.empty() && dataset->format() != "tum") {
+    std::fprintf(stderr, "dqo_track: --camera applies to TUM sequences only\n");
+    return 1;
+  }
+  const std::shared_ptr<const dqo::FrameSource> reader = dqo::tracking::rectified(dataset, &error);
   if (!reader) {
     std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
     return 1;
@@ -114,8 +136,10 @@ int main(int argc, char** argv) {
   }
   const dqo::PinholeCamera& camera = reader->info().camera;
   const int count = (total + o.every - 1) / o.every;  // frames tracked: 0, K, 2K, ...
-  std::fprintf(stderr, "dqo_track: %s dataset %s, %d frames of %dx%d\n", reader->format().c_str(),
-               o.dataset.c_str(), count, camera.width, camera.height);
+  const std::string lens = dataset->info().distortion_model;
+  std::fprintf(stderr, "dqo_track: %s dataset %s, %d frames of %dx%d%s\n", dataset->format().c_str(),
+               o.dataset.c_str(), count, camera.width, camera.height,
+               lens.empty() ? "" : (", " + lens + " undistorted").c_str());
 
   // Bit-identical output for the same input on any machine load (local BA at fixed points).
   config.tracker.local_ba.deterministic = true;
