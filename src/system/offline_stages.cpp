@@ -47,7 +47,7 @@ void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCam
     const tracking::SessionResult r = session->track(camera, input);
     out.ms = ms_since(t0);
     if (r.skipped != tracking::SessionResult::Skip::kNone ||
-        r.track.state != tracking::TrackingState::kOk) {
+        !tracking::has_pose(r.track.state)) {
       return out;
     }
     out.T_wc = anchors->apply(frame, r.track.T_wc);

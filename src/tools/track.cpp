@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <future>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -31,14 +32,17 @@ using dqo::median;
 
 constexpr char kUsage[] =
     "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]\n"
-    "                 [--camera camera.yaml]\n"
+    "                 [--camera camera.yaml] [--verbose]\n"
     "  DATASET_DIR        own format (camera.yaml, rgb/), TUM RGB-D (rgb.txt, depth.txt) or Replica\n"
     "  --out traj.txt     the estimated trajectory, TUM format (T_world_camera of tracked frames)\n"
     "  --config FILE      tracking parameters (default: the built-in ones, as config/tracking.yaml)\n"
     "  --frames N         track only the first N frames\n"
     "  --every K          track every K-th of them (frames 0, K, 2K, ...): larger baselines\n"
     "  --camera FILE      a TUM sequence's intrinsics and distortion from FILE, not its camera.yaml\n"
-    "                     (e.g. config/cameras/tum_fr1.yaml)\n";
+    "                     (e.g. config/cameras/tum_fr1.yaml)\n"
+    "  --verbose          one line per frame on stderr: state, its evidence and reasons\n"
+    "Prints the frames per state (ok, degraded, lost) and why frames were not ok. The trajectory\n"
+    "holds the ok and degraded frames (lost frames have no pose).\n";
 
 struct Options {
   std::string dataset;
@@ -47,6 +51,7 @@ struct Options {
   std::string camera;
   int frames = -1;
   int every = 1;
+  bool verbose = false;
 };
 
 int usage_error(const std::string& message) {
@@ -65,6 +70,8 @@ int main(int argc, char** argv) {
     if (a == "-h" || a == "--help") {
       std::fputs(kUsage, stdout);
       return 0;
+    } else if (a == "--verbose") {
+      o.verbose = true;
     } else if (a == "--out" || a == "--config" || a == "--frames" || a == "--every" ||
                a == "--camera") {
       const char* v = value();
@@ -146,7 +153,8 @@ int main(int argc, char** argv) {
   dqo::tracking::TrackingSession session(config);
   dqo::Trajectory estimate, ground_truth;
   std::vector<double> ms;
-  int lost = 0, not_initialised = 0, relocalised = 0, skipped = 0;
+  int ok = 0, degraded = 0, lost = 0, not_initialised = 0, relocalised = 0, skipped = 0;
+  std::map<std::string, int> reasons;  // why frames were degraded or lost
   dqo::ProgressBar progress("tracking", count);
   // Reading (PNG decoding) of frame i + 1 overlaps tracking of frame i.
   auto read = [&](int i) {
@@ -181,6 +189,11 @@ int main(int argc, char** argv) {
     if (r.track.relocalised) ++relocalised;
     switch (r.track.state) {
       case dqo::tracking::TrackingState::kOk:
+        ++ok;
+        estimate.emplace_back(frame->timestamp, r.track.T_wc);
+        break;
+      case dqo::tracking::TrackingState::kDegraded:
+        ++degraded;
         estimate.emplace_back(frame->timestamp, r.track.T_wc);
         break;
       case dqo::tracking::TrackingState::kLost:
@@ -189,6 +202,19 @@ int main(int argc, char** argv) {
       case dqo::tracking::TrackingState::kNotInitialised:
         ++not_initialised;
         break;
+    }
+    if (r.track.state != dqo::tracking::TrackingState::kOk) {
+      ++reasons[dqo::tracking::reasons_to_string(r.track.quality.reasons)];
+    }
+    if (o.verbose) {
+      const dqo::tracking::TrackQuality& q = r.track.quality;
+      std::fprintf(stderr,
+                   "frame %4d %-15s inl %4d spread %.2f dense %d rms %.2f ratio %.2f "
+                   "disagree %.3f m %.2f deg kf %d %6.2f ms %s\n",
+                   i, dqo::tracking::to_string(r.track.state), q.inliers, q.spread, q.dense_ok,
+                   q.dense_rms, q.dense_inlier_ratio, q.disagreement_m, q.disagreement_deg,
+                   r.track.new_keyframe, r.track.milliseconds,
+                   dqo::tracking::reasons_to_string(q.reasons).c_str());
     }
     progress.update(j + 1);
   }
@@ -200,6 +226,11 @@ int main(int argc, char** argv) {
   const dqo::tracking::Tracker* tracker = session.tracker();
   std::printf("frames: %d (tracked %zu, lost %d, not initialised %d, skipped %d)\n", count,
               estimate.size(), lost, not_initialised, skipped);
+  std::printf("states: ok %d, degraded %d, lost %d, not_initialised %d\n", ok, degraded, lost,
+              not_initialised);
+  for (const auto& [why, n] : reasons) {
+    std::printf("  %d frames not ok: %s\n", n, why.empty() ? "(not initialised)" : why.c_str());
+  }
   std::printf("relocalisations: %d\n", relocalised);
   std::printf("keyframes: %zu tracker, %llu mapping; map points: %zu\n",
               tracker ? tracker->num_keyframes() : size_t{0},

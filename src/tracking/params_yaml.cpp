@@ -107,6 +107,16 @@ Section schema(TrackingConfig& c) {
                                   {"deterministic", &t.local_ba.deterministic},
                               },
                               {}},
+                      Section{"quality",
+                              {
+                                  {"ok_inliers", &t.quality.ok_inliers, 0, 100000},
+                                  {"min_spread", &t.quality.min_spread, 0.0, 1.0},
+                                  {"dense_max_rms", &t.quality.dense_max_rms, 0.0, kInf},
+                                  {"dense_min_inlier_ratio", &t.quality.dense_min_inlier_ratio, 0.0, 1.0},
+                                  {"max_disagreement_m", &t.quality.max_disagreement_m, 0.0, kInf},
+                                  {"max_disagreement_deg", &t.quality.max_disagreement_deg, 0.0, 180.0},
+                              },
+                              {}},
                       Section{"reloc",
                               {
                                   {"candidate_keyframes", &t.reloc.candidate_keyframes, 1, 10000},

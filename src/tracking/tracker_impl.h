@@ -20,6 +20,7 @@
 #include "matching.h"
 #include "orb_frame.h"
 #include "pose_optimiser.h"
+#include "tracking_quality.h"
 
 namespace dqo::tracking {
 
@@ -40,6 +41,11 @@ struct FeatureOutcome {
   SE3 T_wc;
   int inliers = 0;
   bool used_prior = false;  // T_wc is the fused solution (features plus the dense prior)
+  // The features alone contradicted the dense alignment and were too few to be believed over it
+  // (ok is false): their own pose and inliers, for the quality check.
+  bool contradicted_dense = false;
+  SE3 T_wc_alone;
+  int inliers_alone = 0;
 };
 
 // A pose optimisation over a frame's matches, with the keypoint of each observation (-1 for
@@ -65,7 +71,7 @@ struct Tracker::Impl {
   TrackResult track_frame(TrackedFrame* frame, const RgbdPyramid* pyramid);
   TrackResult track_lost(TrackedFrame* frame);
   bool relocalise_frame(TrackedFrame* frame, SE3* T_wc, int* inliers);
-  std::optional<DensePrior> align_to_last(const RgbdPyramid* pyramid);
+  std::optional<DensePrior> align_to_last(const RgbdPyramid* pyramid, DenseResult* dense);
   FeatureOutcome track_features(TrackedFrame* frame, const DensePrior* prior, const SE3& T_wc_mm);
   bool track_motion_model(TrackedFrame* frame, const SE3& T_wc_mm, SE3* T_wc);
   int match_last_frame(TrackedFrame* frame, const SE3& T_wc_guess, double radius,
@@ -81,6 +87,8 @@ struct Tracker::Impl {
   void accumulate_odometry(const DensePrior* prior, const SE3& T_wc);
   void accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
               bool update_velocity, TrackResult* result);
+  QualityEvidence evidence_base() const;
+  double spread_of(const TrackedFrame& frame) const;
 
   // ---- tracker_map.cpp: the map
   bool need_keyframe(const TrackedFrame& frame, int inliers, bool features_ok) const;
@@ -105,7 +113,10 @@ struct Tracker::Impl {
   std::unique_ptr<LocalBaWorker> ba_;
   uint64_t generation_ = 1;  // bumped by reset(): results of an older map are dropped
 
+  // The tracker's mode: kNotInitialised, kOk (tracking frame to frame) or kLost (relocalising).
   std::atomic<TrackingState> state_{TrackingState::kNotInitialised};
+  // What the last frame was reported as (kDegraded too, and kLost for a single lost frame).
+  std::atomic<TrackingState> reported_state_{TrackingState::kNotInitialised};
   int failures_ = 0;  // consecutive frames where neither features nor dense held
   uint64_t frame_counter_ = 0;
   std::optional<TrackedFrame> last_;

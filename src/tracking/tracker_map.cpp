@@ -302,7 +302,7 @@ void Tracker::Impl::apply_ba_result(const LocalBaResult& result) {
 }
 
 void Tracker::Impl::register_frame(uint64_t id) {
-  if (!last_ || state_ != TrackingState::kOk || map_.keyframe(last_->reference_keyframe) == nullptr)
+  if (!last_ || !has_pose(reported_state_) || map_.keyframe(last_->reference_keyframe) == nullptr)
     return;
   std::lock_guard<std::mutex> lock(registry_mutex_);
   registered_[id] = {last_->reference_keyframe, last_->T_ref_frame};
@@ -334,6 +334,7 @@ void Tracker::Impl::reset() {
   ++generation_;
   map_.clear();
   state_ = TrackingState::kNotInitialised;
+  reported_state_ = TrackingState::kNotInitialised;
   failures_ = 0;
   last_.reset();
   has_last_pyramid_ = false;

@@ -168,13 +168,13 @@ bool run_case(const Case& c, const Options& options, Row* row) {
     truth.emplace_back(f.timestamp, f.T_wc);
     if (r.state == TrackingState::kLost) row->lost = true;
     row->predicted += r.predicted;
-    if (r.state == TrackingState::kOk) estimate.emplace_back(f.timestamp, r.T_wc);
+    if (dqo::tracking::has_pose(r.state)) estimate.emplace_back(f.timestamp, r.T_wc);
     if (options.verbose) {
       const dqo::SE3 rel = frames[0].T_wc.inverse() * f.T_wc;
       std::printf("  frame %4zu %-15s kp %4d inl %4d kf %d pred %d %6.2f ms  |t_est - t_gt0| %.4f m\n",
                   i, dqo::tracking::to_string(r.state), r.features, r.inliers, r.new_keyframe,
                   r.predicted, r.milliseconds,
-                  r.state == TrackingState::kOk ? (r.T_wc.translation() - rel.translation()).norm()
+                  dqo::tracking::has_pose(r.state) ? (r.T_wc.translation() - rel.translation()).norm()
                                                 : NAN);
     }
   }

@@ -102,6 +102,22 @@ struct RelocParams {
   int max_pnp = 5;                // candidates (the best matched first) given to PnP RANSAC
 };
 
+// When a tracked frame is ok, degraded or lost (TrackQuality). Features hold when they have
+// ok_inliers inliers spread over min_spread of the image; dense alignment holds when it converged
+// with a whitened RMS of at most dense_max_rms over at least dense_min_inlier_ratio of the points.
+// ok: the features hold and dense alignment does not contradict them (or dense alone holds when
+// features are off). degraded: dense holds without the features' support, or the features have
+// at least min_inliers_ok inliers, or the two disagree and the features hold. lost: otherwise
+// (also when they disagree and the features do not hold).
+struct QualityParams {
+  int ok_inliers = 50;
+  double min_spread = 0.25;          // of the 4x4 cells of the image
+  double dense_max_rms = 1.2;
+  double dense_min_inlier_ratio = 0.4;
+  double max_disagreement_m = 0.03;  // between the dense and the feature pose of one frame
+  double max_disagreement_deg = 2.0;
+};
+
 struct TrackerParams {
   OrbParams orb;
   DenseParams dense;
@@ -110,10 +126,11 @@ struct TrackerParams {
   LocalBaParams local_ba;
   RelocParams reloc;
   SearchParams search;
+  QualityParams quality;
   bool use_dense = true;        // fuse dense depth alignment with the features
   bool use_features = true;
   int min_inliers_ok = 15;      // below: this frame's tracking failed
-  int frames_to_lost = 3;       // consecutive failures before the state becomes kLost
+  int frames_to_lost = 3;       // consecutive lost frames before relocalisation takes over
 };
 
 }  // namespace dqo::tracking
