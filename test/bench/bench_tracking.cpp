@@ -10,6 +10,8 @@
 //                  [--no-features] [--no-ba] [--sync-ba] [--dense-weight W]
 //                  [--set NAME=VALUE]... [--verbose]        (NAME: see set_param below)
 //   bench_tracking --all [--frames N]     tabletop, room, tabletop_plain, tabletop every 10th frame
+//   bench_tracking --real [--tum DIR] [--frames N]   TUM fr1/xyz and injected faults
+//                                                    (bench_tracking_real.cpp)
 //
 // Issue 4's targets: ATE <= 1 cm on tabletop, <= 2 cm on room; no loss on all four (never kLost
 // and every frame within 5 cm); median <= 20 ms per 640x480 frame.
@@ -31,6 +33,7 @@
 #include "dqo_map/sim/renderer.h"
 #include "dqo_map/sim/scene_loader.h"
 #include "dqo_map/tracking/tracker.h"
+#include "bench_tracking_real.h"
 
 namespace {
 
@@ -207,8 +210,9 @@ int usage(const char* argv0) {
                "usage: %s [--scene PATH] [--every K] [--frames N] [--threads T] [--no-dense] "
                "[--no-features] [--no-ba] [--sync-ba] [--dense-weight W] [--set NAME=VALUE] "
                "[--verbose]\n"
-               "       %s --all [--frames N]\n",
-               argv0, argv0);
+               "       %s --all [--frames N]\n"
+               "       %s --real [--tum DIR] [--frames N]\n",
+               argv0, argv0, argv0);
   return 2;
 }
 
@@ -221,11 +225,18 @@ int main(int argc, char** argv) {
   int frames = 0;
   bool all = false;
   Options options;
+  bool real = false;
+  RealOptions real_options;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const char* v = i + 1 < argc ? argv[i + 1] : nullptr;
     if (a == "--all") {
       all = true;
+    } else if (a == "--real") {
+      real = true;
+    } else if (v != nullptr && a == "--tum") {
+      real_options.tum_dir = v;
+      ++i;
     } else if (a == "--no-dense") {
       options.use_dense = false;
     } else if (a == "--no-features") {
@@ -266,6 +277,10 @@ int main(int argc, char** argv) {
     }
   }
 
+  if (real) {
+    if (frames > 0) real_options.synthetic_frames = frames;
+    return run_real_benchmark(DQO_SOURCE_DIR, real_options);
+  }
   std::vector<Case> cases;
   if (all) {
     cases = {{"tabletop", scenes + "tabletop.yaml", 1, frames},
