@@ -110,6 +110,7 @@ Section schema(TrackingConfig& c) {
                       Section{"quality",
                               {
                                   {"ok_inliers", &t.quality.ok_inliers, 0, 100000},
+                                  {"ok_depth_inliers", &t.quality.ok_depth_inliers, 0, 100000},
                                   {"min_spread", &t.quality.min_spread, 0.0, 1.0},
                                   {"dense_max_rms", &t.quality.dense_max_rms, 0.0, kInf},
                                   {"dense_min_inlier_ratio", &t.quality.dense_min_inlier_ratio, 0.0, 1.0},

@@ -139,6 +139,13 @@ double Tracker::Impl::spread_of(const TrackedFrame& frame) const {
   return inlier_spread(uv, camera_);
 }
 
+int Tracker::Impl::depth_inliers_of(const TrackedFrame& frame) const {
+  int n = 0;
+  for (size_t k = 0; k < frame.map_points.size(); ++k)
+    n += frame.map_points[k] != kNoId && frame.features.has_depth(static_cast<int>(k));
+  return n;
+}
+
 namespace {
 
 double angle_deg(const SE3& T) {
@@ -177,6 +184,7 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
     features_ok = true;
     e.inliers = features.inliers;
     e.spread = spread_of(*frame);
+    e.depth_inliers = depth_inliers_of(*frame);
     compare(features.T_wc);
   } else if (prior) {
     // Features too few (a plain scene, a fast turn): the dense alignment holds the pose, fused
@@ -184,6 +192,7 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
     T_wc = features.used_prior ? features.T_wc : T_wc_dense;
     e.inliers = features.used_prior ? features.inliers : 0;
     e.spread = features.used_prior ? spread_of(*frame) : 0.0;
+    e.depth_inliers = features.used_prior ? depth_inliers_of(*frame) : 0;
     if (features.contradicted_dense) {
       e.inliers = features.inliers_alone;
       compare(features.T_wc_alone);
@@ -196,6 +205,7 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
       QualityEvidence r = evidence_base();
       r.inliers = inliers;
       r.spread = spread_of(*frame);
+      r.depth_inliers = depth_inliers_of(*frame);
       const QualityVerdict verdict = assess_quality(r, params_.quality);
       has_velocity_ = false;
       accept(frame, T_wc, inliers, true, false, &result);
@@ -211,7 +221,11 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
   if (verdict.state != TrackingState::kLost) {
     if (prior) accumulate_odometry(&*prior, T_wc);
     else odometry_valid_ = false;
-    accept(frame, T_wc, e.inliers, features_ok, true, &result);
+    // Keyframes from poses the RGB-D evidence supports: a monocular pose (depth dropped) adds no
+    // points and would anchor the map on its weaker rotation.
+    const uint32_t no_depth = quality_reason::kNoDepth | quality_reason::kDenseFailed;
+    const bool keyframe_ok = (verdict.quality.reasons & no_depth) != no_depth;
+    accept(frame, T_wc, e.inliers, features_ok, true, &result, keyframe_ok);
     result.state = verdict.state;
     result.quality = verdict.quality;
     return result;
@@ -245,6 +259,7 @@ TrackResult Tracker::Impl::track_lost(TrackedFrame* frame) {
   QualityEvidence e = evidence_base();
   e.inliers = inliers;
   e.spread = spread_of(*frame);
+  e.depth_inliers = depth_inliers_of(*frame);
   const QualityVerdict verdict = assess_quality(e, params_.quality);
   state_ = TrackingState::kOk;
   has_velocity_ = false;
@@ -258,11 +273,11 @@ TrackResult Tracker::Impl::track_lost(TrackedFrame* frame) {
 }
 
 void Tracker::Impl::accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
-                           bool update_velocity, TrackResult* result) {
+                           bool update_velocity, TrackResult* result, bool keyframe_allowed) {
   failures_ = 0;
   frame->T_wc = T_wc;
   count_found(*frame);
-  if (need_keyframe(*frame, inliers, features_ok)) {
+  if (keyframe_allowed && need_keyframe(*frame, inliers, features_ok)) {
     create_keyframe(frame);
     result->new_keyframe = true;
   }

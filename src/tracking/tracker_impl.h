@@ -86,9 +86,10 @@ struct Tracker::Impl {
   void finish_frame(TrackedFrame* frame, const SE3& T_wc, bool update_velocity);
   void accumulate_odometry(const DensePrior* prior, const SE3& T_wc);
   void accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
-              bool update_velocity, TrackResult* result);
+              bool update_velocity, TrackResult* result, bool keyframe_allowed = true);
   QualityEvidence evidence_base() const;
   double spread_of(const TrackedFrame& frame) const;
+  int depth_inliers_of(const TrackedFrame& frame) const;
 
   // ---- tracker_map.cpp: the map
   bool need_keyframe(const TrackedFrame& frame, int inliers, bool features_ok) const;

@@ -5,7 +5,7 @@
 namespace dqo::tracking {
 
 std::string reasons_to_string(uint32_t reasons) {
-  static constexpr std::array<std::pair<uint32_t, const char*>, 7> kNames = {{
+  static constexpr std::array<std::pair<uint32_t, const char*>, 8> kNames = {{
       {quality_reason::kFewInliers, "few_inliers"},
       {quality_reason::kPoorSpread, "poor_spread"},
       {quality_reason::kDenseFailed, "dense_failed"},
@@ -13,6 +13,7 @@ std::string reasons_to_string(uint32_t reasons) {
       {quality_reason::kDisagreement, "features_dense_disagree"},
       {quality_reason::kNoEvidence, "no_evidence"},
       {quality_reason::kRelocalising, "relocalising"},
+      {quality_reason::kNoDepth, "few_depth_inliers"},
   }};
   std::string out;
   for (const auto& [bit, name] : kNames) {
@@ -28,6 +29,7 @@ QualityVerdict assess_quality(const QualityEvidence& e, const QualityParams& p) 
   QualityVerdict v;
   TrackQuality& q = v.quality;
   q.inliers = e.inliers;
+  q.depth_inliers = e.depth_inliers;
   q.spread = e.spread;
   q.dense_tried = e.dense_tried;
   q.dense_ok = e.dense_ok;
@@ -48,6 +50,7 @@ QualityVerdict assess_quality(const QualityEvidence& e, const QualityParams& p) 
   if (features) {
     if (e.inliers < p.ok_inliers) q.reasons |= r::kFewInliers;
     if (e.spread < p.min_spread) q.reasons |= r::kPoorSpread;
+    if (e.depth_inliers < p.ok_depth_inliers) q.reasons |= r::kNoDepth;
   }
   if (dense) {
     if (!e.dense_ok) {
@@ -60,7 +63,8 @@ QualityVerdict assess_quality(const QualityEvidence& e, const QualityParams& p) 
                                        e.disagreement_deg > p.max_disagreement_deg);
   if (disagree) q.reasons |= r::kDisagreement;
 
-  const bool features_hold = features && (q.reasons & (r::kFewInliers | r::kPoorSpread)) == 0;
+  const bool features_hold =
+      features && (q.reasons & (r::kFewInliers | r::kPoorSpread | r::kNoDepth)) == 0;
   const bool features_some = features && e.inliers >= e.min_inliers;
   const bool dense_holds = dense && (q.reasons & (r::kDenseFailed | r::kDenseResidual)) == 0;
 

@@ -17,6 +17,7 @@ struct QualityEvidence {
   bool use_dense = true;
   int min_inliers = 15;         // TrackerParams::min_inliers_ok: fewer, the features failed
   int inliers = 0;              // feature inliers of the pose
+  int depth_inliers = 0;        // ... with depth
   double spread = 0.0;          // inlier_spread() of them
   bool dense_tried = false;     // dense alignment ran on this frame (not at relocalisation)
   bool dense_ok = false;

@@ -10,7 +10,8 @@
 //                  [--no-features] [--no-ba] [--sync-ba] [--dense-weight W]
 //                  [--set NAME=VALUE]... [--verbose]        (NAME: see set_param below)
 //   bench_tracking --all [--frames N]     tabletop, room, tabletop_plain, tabletop every 10th frame
-//   bench_tracking --real [--tum DIR] [--frames N]   TUM fr1/xyz and injected faults
+//   bench_tracking --real [--tum DIR] [--frames N] [--fault NAME] [--verbose]
+//                                                    TUM fr1/xyz and injected faults
 //                                                    (bench_tracking_real.cpp)
 //
 // Issue 4's targets: ATE <= 1 cm on tabletop, <= 2 cm on room; no loss on all four (never kLost
@@ -211,7 +212,7 @@ int usage(const char* argv0) {
                "[--no-features] [--no-ba] [--sync-ba] [--dense-weight W] [--set NAME=VALUE] "
                "[--verbose]\n"
                "       %s --all [--frames N]\n"
-               "       %s --real [--tum DIR] [--frames N]\n",
+               "       %s --real [--tum DIR] [--frames N] [--fault NAME] [--verbose]\n",
                argv0, argv0, argv0);
   return 2;
 }
@@ -234,6 +235,9 @@ int main(int argc, char** argv) {
       all = true;
     } else if (a == "--real") {
       real = true;
+    } else if (v != nullptr && a == "--fault") {
+      real_options.only = v;
+      ++i;
     } else if (v != nullptr && a == "--tum") {
       real_options.tum_dir = v;
       ++i;
@@ -279,6 +283,7 @@ int main(int argc, char** argv) {
 
   if (real) {
     if (frames > 0) real_options.synthetic_frames = frames;
+    real_options.verbose = options.verbose;
     return run_real_benchmark(DQO_SOURCE_DIR, real_options);
   }
   std::vector<Case> cases;

@@ -172,7 +172,7 @@ Sequence inject(const Sequence& s, const std::string& fault, Fault* f) {
   return out;
 }
 
-Stats run(const Sequence& s, const Fault& fault) {
+Stats run(const Sequence& s, const Fault& fault, bool verbose) {
   Stats st;
   st.label = s.name;
   dqo::tracking::TrackerParams params;
@@ -193,6 +193,15 @@ Stats run(const Sequence& s, const Fault& fault) {
       case TrackingState::kDegraded: ++st.degraded; break;
       case TrackingState::kLost: ++st.lost; break;
       case TrackingState::kNotInitialised: ++st.not_initialised; break;
+    }
+    if (verbose) {
+      const SE3 rel = s.frames.front().T_wc.inverse() * f.T_wc;
+      std::printf("  %8.3f %-9s inl %4d spread %.2f dense %d rms %.2f kf %d reloc %d |t - t_gt| %.3f %s\n",
+                  f.t - s.frames.front().t, dqo::tracking::to_string(r.state), r.quality.inliers,
+                  r.quality.spread, r.quality.dense_ok, r.quality.dense_rms, r.new_keyframe,
+                  r.relocalised,
+                  dqo::tracking::has_pose(r.state) ? (r.T_wc.translation() - rel.translation()).norm() : NAN,
+                  dqo::tracking::reasons_to_string(r.quality.reasons).c_str());
     }
     if (f.has_gt) truth.emplace_back(f.t, f.T_wc);
     if (dqo::tracking::has_pose(r.state) && f.has_gt) {
@@ -225,6 +234,10 @@ Stats run(const Sequence& s, const Fault& fault) {
     const SE3 delta = nearest->second.inverse() * aligned;
     const double e = (aligned.translation() - nearest->second.translation()).norm();
     const bool wrong = e > 0.05 || angle_deg(delta) > 5.0;
+    if (wrong && verbose) {
+      std::printf("  wrong pose at %.3f (%s): %.1f cm, %.1f deg\n", t - s.frames.front().t,
+                  dqo::tracking::to_string(states[i]), 100.0 * e, angle_deg(delta));
+    }
     if (wrong && states[i] == TrackingState::kOk) ++st.wrong_ok;
     if (wrong && states[i] == TrackingState::kDegraded) ++st.wrong_degraded;
     if (std::isfinite(fault.end) && t >= fault.end) {
@@ -267,14 +280,15 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
       return 1;
     }
     for (const int k : {1, 5, 10, 20}) {
-      const Stats s = run(every_kth(*tum, k), Fault{});
+      const Stats s = run(every_kth(*tum, k), Fault{}, options.verbose);
       zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
       print(s);
     }
-    for (const char* fault : {"covered", "no depth", "repeated"}) {
+    for (const std::string fault : {"covered", "no depth", "repeated"}) {
+      if (!options.only.empty() && fault != options.only) continue;
       Fault f;
       const Sequence faulty = inject(*tum, fault, &f);
-      const Stats s = run(faulty, f);
+      const Stats s = run(faulty, f, options.verbose);
       zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
       print(s);
     }
@@ -285,11 +299,12 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
     std::fprintf(stderr, "bench_tracking: %s\n", error.c_str());
     return 1;
   }
-  print(run(*tabletop, Fault{}));
-  for (const char* fault : {"covered", "no depth", "jump 30deg", "repeated"}) {
+  print(run(*tabletop, Fault{}, options.verbose));
+  for (const std::string fault : {"covered", "no depth", "jump 30deg", "repeated"}) {
+    if (!options.only.empty() && fault != options.only) continue;
     Fault f;
     const Sequence faulty = inject(*tabletop, fault, &f);
-    const Stats s = run(faulty, f);
+    const Stats s = run(faulty, f, options.verbose);
     zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
     print(s);
   }

@@ -5,6 +5,8 @@
 struct RealOptions {
   std::string tum_dir;           // "" : <source>/../shared/data/tum_fr1_xyz
   int synthetic_frames = 150;    // of the tabletop (5 s at 30 Hz)
+  bool verbose = false;          // one line per frame
+  std::string only;              // one fault ("covered", "no depth", "jump 30deg", "repeated")
 };
 
 // Prints one row per run; 0 when no wrong pose was reported ok.

@@ -19,6 +19,7 @@ namespace reason = dqo::tracking::quality_reason;
 QualityEvidence good() {
   QualityEvidence e;
   e.inliers = 200;
+  e.depth_inliers = 180;
   e.spread = 0.9;
   e.dense_tried = true;
   e.dense_ok = true;
@@ -56,6 +57,7 @@ TEST(TrackingQuality, DisagreementDegradesStrongFeaturesAndLosesWeakOnes) {
   EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kDegraded);
 
   e.inliers = 25;  // features too few to be believed over the dense pose
+  e.depth_inliers = 25;
   v = assess_quality(e, QualityParams{});
   EXPECT_EQ(v.state, TrackingState::kLost);
   EXPECT_EQ(v.quality.reasons, reason::kDisagreement | reason::kFewInliers);
@@ -66,11 +68,12 @@ TEST(TrackingQuality, DenseAloneIsNeverOk) {
   // translation with the right rotation (issue 14): degraded at best.
   QualityEvidence e = good();
   e.inliers = 0;
+  e.depth_inliers = 0;
   e.spread = 0.0;
   e.compared = false;
   auto v = assess_quality(e, QualityParams{});
   EXPECT_EQ(v.state, TrackingState::kDegraded);
-  EXPECT_EQ(v.quality.reasons, reason::kFewInliers | reason::kPoorSpread);
+  EXPECT_EQ(v.quality.reasons, reason::kFewInliers | reason::kPoorSpread | reason::kNoDepth);
 
   e.dense_rms = 3.0;  // and with a poor fit nothing supports the pose
   v = assess_quality(e, QualityParams{});
@@ -104,9 +107,23 @@ TEST(TrackingQuality, BunchedOrFewInliersAreDegraded) {
 
   e.spread = 0.9;
   e.inliers = 20;  // above min_inliers (15), below ok_inliers (50)
+  e.depth_inliers = 20;
   EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kDegraded);
   e.inliers = 10;  // below min_inliers and no dense: nothing holds
+  e.depth_inliers = 10;
   EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kLost);
+}
+
+TEST(TrackingQuality, FeaturesWithoutDepthAreDegraded) {
+  // Depth dropped: the features still match the map by reprojection alone (a monocular pose)
+  // and dense alignment has nothing to align.
+  QualityEvidence e = good();
+  e.depth_inliers = 3;
+  e.dense_ok = false;
+  e.compared = false;
+  const auto v = assess_quality(e, QualityParams{});
+  EXPECT_EQ(v.state, TrackingState::kDegraded);
+  EXPECT_EQ(v.quality.reasons, reason::kNoDepth | reason::kDenseFailed);
 }
 
 TEST(TrackingQuality, APredictionIsLost) {
@@ -121,10 +138,12 @@ TEST(TrackingQuality, RelocalisationIsJudgedOnTheFeatures) {
   // Dense alignment does not run when relocalising: its absence is no reason.
   QualityEvidence e;
   e.inliers = 120;
+  e.depth_inliers = 100;
   e.spread = 0.6;
   auto v = assess_quality(e, QualityParams{});
   EXPECT_EQ(v.state, TrackingState::kOk);
   e.inliers = 35;
+  e.depth_inliers = 30;
   v = assess_quality(e, QualityParams{});
   EXPECT_EQ(v.state, TrackingState::kDegraded);
   EXPECT_EQ(v.quality.reasons, reason::kFewInliers);

@@ -43,6 +43,7 @@ constexpr uint32_t kDenseResidual = 1u << 3; // it converged to a poor fit (resi
 constexpr uint32_t kDisagreement = 1u << 4;  // features and dense alignment give different poses
 constexpr uint32_t kNoEvidence = 1u << 5;    // neither held: the motion model's guess only
 constexpr uint32_t kRelocalising = 1u << 6;  // lost, relocalisation failed on this frame
+constexpr uint32_t kNoDepth = 1u << 7;       // few inliers with depth: a monocular pose only
 }  // namespace quality_reason
 // "few_inliers+poor_spread"; "" for none.
 std::string reasons_to_string(uint32_t reasons);
@@ -50,6 +51,7 @@ std::string reasons_to_string(uint32_t reasons);
 // The evidence behind a frame's state (what diagnostics show).
 struct TrackQuality {
   int inliers = 0;               // feature inliers (map points) of the reported pose
+  int depth_inliers = 0;         // ... of them with a depth measurement
   double spread = 0.0;           // fraction of the image's 4x4 cells holding one of them
   bool dense_tried = false;      // dense alignment ran on this frame
   bool dense_ok = false;         // ... and converged

@@ -111,6 +111,9 @@ struct RelocParams {
 // (also when they disagree and the features do not hold).
 struct QualityParams {
   int ok_inliers = 50;
+  // Of them with depth, for ok: without depth the features give a monocular pose, whose
+  // translation the RGB-D map does not check (depth dropped: degraded, not ok).
+  int ok_depth_inliers = 25;
   double min_spread = 0.25;          // of the 4x4 cells of the image
   double dense_max_rms = 1.2;
   double dense_min_inlier_ratio = 0.4;
