@@ -59,6 +59,7 @@ struct Fault {
 
 struct Stats {
   std::string label;
+  double base_after_cm = NAN;  // the fault-free run's ATE over the same span after the fault
   int frames = 0, ok = 0, degraded = 0, lost = 0, not_initialised = 0;
   int wrong_ok = 0, wrong_degraded = 0;
   double ate_cm = NAN, max_cm = NAN, ate_after_cm = NAN;
@@ -250,10 +251,10 @@ Stats run(const Sequence& s, const Fault& fault, bool verbose) {
 }
 
 void print(const Stats& s) {
-  std::printf("%-32s %6d %5d %5d %5d %5d %8.2f %8.2f %8d %8d %9.2f %9.2f %7.2f %7.2f\n",
+  std::printf("%-32s %6d %5d %5d %5d %5d %8.2f %8.2f %8d %8d %9.2f %9.2f %9.2f %7.2f %7.2f\n",
               s.label.c_str(), s.frames, s.ok, s.degraded, s.lost, s.not_initialised, s.ate_cm,
-              s.max_cm, s.wrong_ok, s.wrong_degraded, s.relocalise_s, s.ate_after_cm, s.median_ms,
-              s.median_cpu_ms);
+              s.max_cm, s.wrong_ok, s.wrong_degraded, s.relocalise_s, s.ate_after_cm,
+              s.base_after_cm, s.median_ms, s.median_cpu_ms);
   std::fflush(stdout);
 }
 
@@ -261,9 +262,9 @@ void print(const Stats& s) {
 
 int run_real_benchmark(const std::string& source_dir, const RealOptions& options) {
   std::string error;
-  std::printf("%-32s %6s %5s %5s %5s %5s %8s %8s %8s %8s %9s %9s %7s %7s\n", "run", "frames",
+  std::printf("%-32s %6s %5s %5s %5s %5s %8s %8s %8s %8s %9s %9s %9s %7s %7s\n", "run", "frames",
               "ok", "degr", "lost", "init", "ATE cm", "max cm", "wrong_ok", "wrong_dg",
-              "reloc s", "after cm", "med ms", "cpu ms");
+              "reloc s", "after cm", "base aft", "med ms", "cpu ms");
   bool zero_wrong_ok = true;
   const std::string tum_dir =
       std::filesystem::path(options.tum_dir.empty()
@@ -288,7 +289,8 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
       if (!options.only.empty() && fault != options.only) continue;
       Fault f;
       const Sequence faulty = inject(*tum, fault, &f);
-      const Stats s = run(faulty, f, options.verbose);
+      Stats s = run(faulty, f, options.verbose);
+      s.base_after_cm = run(*tum, f, false).ate_after_cm;
       zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
       print(s);
     }
@@ -304,7 +306,8 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
     if (!options.only.empty() && fault != options.only) continue;
     Fault f;
     const Sequence faulty = inject(*tabletop, fault, &f);
-    const Stats s = run(faulty, f, options.verbose);
+    Stats s = run(faulty, f, options.verbose);
+    s.base_after_cm = run(*tabletop, f, false).ate_after_cm;
     zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
     print(s);
   }

@@ -286,4 +286,41 @@ TEST_F(TabletopStart, DenseAloneTracks) {
 
 TEST_F(TabletopStart, FusedTracks) { EXPECT_LT(track_all(TrackerParams{}), 0.005); }
 
+// A covered lens for 8 frames (a quarter second, the camera moving on), then the view again:
+// every covered frame lost and no keyframe made, relocalised within a few frames, and no frame
+// reported ok with a wrong pose.
+TEST_F(TabletopStart, RelocalisesAfterACoveredLens) {
+  Tracker tracker(scene_->camera, TrackerParams{});
+  const dqo::SE3 T_0 = (*frames_)[0].T_wc;
+  dqo::Frame covered = (*frames_)[0];
+  std::fill(covered.rgb.data.begin(), covered.rgb.data.end(), 0);
+  std::fill(covered.depth.data.begin(), covered.depth.data.end(), 0.0f);
+  int first_ok_after = -1;
+  bool relocalised = false;
+  for (int i = 0; i < kFrames; ++i) {
+    const dqo::Frame& f = (*frames_)[i];
+    const bool cover = i >= 10 && i < 18;
+    RgbdInput input;
+    input.timestamp = f.timestamp;
+    input.rgb = cover ? &covered.rgb : &f.rgb;
+    input.depth = cover ? &covered.depth : &f.depth;
+    const size_t keyframes = tracker.num_keyframes();
+    const TrackResult r = tracker.track(input);
+    if (cover) {
+      EXPECT_EQ(r.state, TrackingState::kLost) << "covered frame " << i;
+      EXPECT_EQ(tracker.num_keyframes(), keyframes) << "covered frame " << i;
+      continue;
+    }
+    relocalised = relocalised || r.relocalised;
+    if (r.state == TrackingState::kOk) {
+      const dqo::SE3 truth = T_0.inverse() * f.T_wc;
+      EXPECT_LT((r.T_wc.translation() - truth.translation()).norm(), 0.02) << "frame " << i;
+      if (i >= 18 && first_ok_after < 0) first_ok_after = i;
+    }
+  }
+  EXPECT_TRUE(relocalised);
+  ASSERT_GE(first_ok_after, 18) << "never ok again after the cover";
+  EXPECT_LE(first_ok_after, 22);
+}
+
 }  // namespace
