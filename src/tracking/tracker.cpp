@@ -88,6 +88,8 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
       result = track_frame(&frame, pyramid);
       break;
     case TrackingState::kLost:
+      // Relocalisation needs features: with dense alignment alone (use_features false) a lost
+      // tracker stays lost, since a pose chained from a guess across the gap would be wrong.
       result = track_lost(&frame);
       break;
   }
