@@ -72,12 +72,17 @@ bool check_camera(const std::string& path, const PinholeCamera& camera, double d
 }
 
 bool read_camera_yaml(const std::string& path, bool depth_scale_required, PinholeCamera* camera,
-                      double* depth_scale, std::string* error) {
+                      double* depth_scale, CameraDistortion* distortion, std::string* error) {
   YAML::Node root;
   if (!load_yaml(path, &root, error)) return false;
   std::set<std::string> seen;
   PinholeCamera cam;
   double scale = *depth_scale;
+  CameraDistortion lens;
+  YAML::Mark lens_mark;
+  const char* expected = distortion != nullptr
+                             ? "width, height, fx, fy, cx, cy, depth_scale, distortion_model, distortion"
+                             : "width, height, fx, fy, cx, cy, depth_scale";
   try {
     for (auto it = root.begin(); it != root.end(); ++it) {
       const YAML::Node key = it->first;
@@ -98,10 +103,26 @@ bool read_camera_yaml(const std::string& path, bool depth_scale_required, Pinhol
         ok = number_of(path, key, value, &cam.cy, error);
       } else if (name == "depth_scale") {
         ok = number_of(path, key, value, &scale, error);
+      } else if (distortion != nullptr && name == "distortion_model") {
+        if (!value.IsScalar()) {
+          return fail(error, at_mark(path, value.Mark(), "'distortion_model' must be a name"));
+        }
+        lens.model = value.Scalar();
+        lens_mark = value.Mark();
+      } else if (distortion != nullptr && name == "distortion") {
+        if (!value.IsSequence()) {
+          return fail(error, at_mark(path, value.Mark(),
+                                     "'distortion' must be a list of numbers [k1, k2, p1, p2, k3, ...]"));
+        }
+        for (const YAML::Node& v : value) {
+          double c = 0.0;
+          if (!number_of(path, key, v, &c, error)) return false;
+          lens.coefficients.push_back(c);
+        }
+        if (!seen.count("distortion_model")) lens_mark = value.Mark();
       } else {
         return fail(error, at_mark(path, key.Mark(),
-                                   "unknown key '" + name +
-                                       "' (expected width, height, fx, fy, cx, cy, depth_scale)"));
+                                   "unknown key '" + name + "' (expected " + expected + ")"));
       }
       if (!ok) return false;
       seen.insert(name);
@@ -116,8 +137,30 @@ bool read_camera_yaml(const std::string& path, bool depth_scale_required, Pinhol
     return fail(error, path + ": missing key 'depth_scale'");
   }
   if (!check_camera(path, cam, scale, error)) return false;
+  if (distortion != nullptr && (seen.count("distortion_model") || seen.count("distortion"))) {
+    size_t most = 0;
+    if (lens.model == "plumb_bob") most = 5;
+    if (lens.model == "rational_polynomial") most = 8;
+    if (!seen.count("distortion_model") || !seen.count("distortion")) {
+      return fail(error, at_mark(path, lens_mark,
+                                 "'distortion_model' and 'distortion' go together"));
+    }
+    if (most == 0) {
+      return fail(error, at_mark(path, lens_mark,
+                                 "unknown distortion_model '" + lens.model +
+                                     "' (expected plumb_bob or rational_polynomial)"));
+    }
+    if (lens.coefficients.size() > most) {
+      return fail(error, at_mark(path, lens_mark,
+                                 lens.model + " takes at most " + std::to_string(most) +
+                                     " coefficients, 'distortion' has " +
+                                     std::to_string(lens.coefficients.size())));
+    }
+    lens.coefficients.resize(most, 0.0);
+  }
   *camera = cam;
   *depth_scale = scale;
+  if (distortion != nullptr) *distortion = lens;
   return true;
 }
 

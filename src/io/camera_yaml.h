@@ -1,10 +1,13 @@
 #pragma once
 // Private to io/: the intrinsics files of the dataset formats.
-//   camera.yaml (own format and TUM): width, height, fx, fy, cx, cy, depth_scale (a flat map).
+//   camera.yaml (own format and TUM): width, height, fx, fy, cx, cy, depth_scale (a flat map), and
+//   optionally the lens distortion of the stored images: distortion_model (plumb_bob or
+//   rational_polynomial) with distortion: [k1, k2, p1, p2, k3(, k4, k5, k6)].
 //   cam_params.json (Replica / NICE-SLAM): {"camera": {"w", "h", "fx", "fy", "cx", "cy", "scale"}}
 // read through yaml-cpp (JSON is YAML). Numbers are parsed from their text exactly.
 
 #include <string>
+#include <vector>
 
 #include "dqo_map/geometry/pinhole_camera.h"
 
@@ -13,8 +16,17 @@ namespace io_detail {
 
 // Unknown keys are errors (naming file and line): a misspelt key must not fall back silently to a
 // default. When depth_scale_required is false and the key is absent, *depth_scale is left as is.
+struct CameraDistortion {
+  std::string model;           // "" when the file gives none
+  std::vector<double> coefficients;
+};
+
+// `distortion` may be null: the keys are then refused (a format whose images are pinhole).
+// A model without coefficients, coefficients without a model, an unknown model or a coefficient
+// count it does not take (plumb_bob 5, rational_polynomial 8; fewer are padded with zeros, as
+// OpenCV does) are errors naming the file and line.
 bool read_camera_yaml(const std::string& path, bool depth_scale_required, PinholeCamera* camera,
-                      double* depth_scale, std::string* error);
+                      double* depth_scale, CameraDistortion* distortion, std::string* error);
 
 std::string camera_yaml_text(const PinholeCamera& camera, double depth_scale);
 

@@ -34,7 +34,11 @@ std::unique_ptr<DatasetReader> open_dataset(const std::string& dir,
   if (!io_detail::check_dataset_dir(dir, error)) return nullptr;
   const std::string format = detect_dataset_format(dir);
   if (format == "dqo") return open_own_dataset(dir, params.load_meshes, error);
-  if (format == "tum") return open_tum_dataset(dir, params.tum, error);
+  if (format == "tum") {
+    TumReaderParams tum = params.tum;
+    tum.load_meshes = params.load_meshes;
+    return open_tum_dataset(dir, tum, error);
+  }
   if (format == "replica") return open_replica_dataset(dir, params.replica, error);
   io_detail::fail(error, dir +
                              ": not a dataset folder: expected camera.yaml and rgb/ (own format), "

@@ -1,10 +1,12 @@
 // Reader of TUM RGB-D sequences (rules in dataset_reader.h).
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <system_error>
 
 #include "camera_yaml.h"
 #include "dataset_reader_util.h"
+#include "side_files.h"
 #include "dqo_map/io/dataset_reader.h"
 #include "text_util.h"
 
@@ -51,23 +53,39 @@ class TumDatasetReader : public io_detail::BasicDatasetReader {
     frame.has_pose = e.has_pose;
     frame.T_wc = e.T_wc;
     if (!read_rgbd(dir_ + "/" + e.rgb, dir_ + "/" + e.depth, &frame, error)) return std::nullopt;
+    if (has_instance_) {
+      // Named as the colour image, else by frame index.
+      const std::string by_name = dir_ + "/instance/" + fs::path(e.rgb).filename().string();
+      std::error_code ec;
+      const std::string path = fs::exists(by_name, ec)
+                                   ? by_name
+                                   : dir_ + "/instance/" + io_detail::frame_file_name(i, "png");
+      if (!io_detail::read_instance_if_present(path, info_.camera, &frame.instance, error))
+        return std::nullopt;
+    }
+    frame.detections = detections_[i];
     return frame;
   }
 
   bool open(const std::string& dir, const TumReaderParams& params, std::string* error) {
     dir_ = dir;
+    load_meshes_ = params.load_meshes;
     info_.depth_scale = params.default_depth_scale;
-    const std::string camera_path = dir + "/camera.yaml";
+    const std::string camera_path =
+        params.camera_file.empty() ? dir + "/camera.yaml" : params.camera_file;
     std::error_code ec;
     if (!fs::exists(camera_path, ec)) {
       return fail(error, camera_path +
                              ": missing (TUM sequences need the intrinsics in a camera.yaml "
                              "beside rgb.txt: width, height, fx, fy, cx, cy, [depth_scale])");
     }
+    io_detail::CameraDistortion lens;
     if (!io_detail::read_camera_yaml(camera_path, /*depth_scale_required=*/false, &info_.camera,
-                                     &info_.depth_scale, error)) {
+                                     &info_.depth_scale, &lens, error)) {
       return false;
     }
+    info_.distortion_model = lens.model;
+    info_.distortion = lens.coefficients;
     std::vector<ListEntry> rgb, depth;
     if (!read_list(dir + "/rgb.txt", &rgb, error) ||
         !read_list(dir + "/depth.txt", &depth, error)) {
@@ -101,10 +119,38 @@ class TumDatasetReader : public io_detail::BasicDatasetReader {
     // rgb.txt is in time order in every TUM sequence; sort anyway so frame order is time order.
     std::stable_sort(frames_.begin(), frames_.end(),
                      [](const Entry& a, const Entry& b) { return a.timestamp < b.timestamp; });
-    return true;
+    return read_side_files(params, error);
   }
 
  private:
+  bool read_side_files(const TumReaderParams& params, std::string* error) {
+    std::error_code ec;
+    has_instance_ = fs::is_directory(dir_ + "/instance", ec);
+    detections_.assign(frames_.size(), {});
+    const double tolerance = params.max_time_difference;
+    auto frame_of_stamp = [this, tolerance](double t) -> std::optional<int> {
+      // frames_ is sorted by time: the nearest of the two around t.
+      const auto it = std::lower_bound(frames_.begin(), frames_.end(), t,
+                                       [](const Entry& e, double v) { return e.timestamp < v; });
+      std::optional<int> best;
+      double best_dt = tolerance;
+      for (auto c : {it, it == frames_.begin() ? it : it - 1}) {
+        if (c == frames_.end()) continue;
+        const double dt = std::abs(c->timestamp - t);
+        if (dt <= best_dt) {
+          best_dt = dt;
+          best = static_cast<int>(c - frames_.begin());
+        }
+      }
+      return best;
+    };
+    return io_detail::read_classes_file(dir_ + "/classes.txt", &info_.class_names, error) &&
+           io_detail::read_detections_file(dir_ + "/detections.txt", info_.class_names,
+                                           frame_of_stamp, &detections_, error) &&
+           io_detail::read_gt_objects_file(dir_ + "/objects_gt.txt", dir_, load_meshes_,
+                                           info_.class_names, &info_.objects, error);
+  }
+
   struct Entry {
     double timestamp = 0.0;
     std::string rgb;
@@ -114,6 +160,9 @@ class TumDatasetReader : public io_detail::BasicDatasetReader {
   };
 
   std::vector<Entry> frames_;
+  std::vector<std::vector<Detection2d>> detections_;  // per frame
+  bool has_instance_ = false;
+  bool load_meshes_ = false;
 };
 
 }  // namespace

@@ -1,6 +1,8 @@
 // tracking_node: the ROS skin of the tracking stage (dqo::tracking::TrackingSession). Synchronises
 // colour, depth and camera_info, converts and undistorts them, tracks, and publishes mapping
-// keyframes, their bundle-adjusted poses, the path, the tracking state, the map's identity and tf.
+// keyframes, their bundle-adjusted poses, the path, the tracking state (ok / degraded / lost) and
+// its evidence and reasons on /diagnostics, the map's identity and tf. Degraded frames publish a
+// pose (tf, path) but make no keyframes; lost frames publish none.
 // No tracking maths lives here. Parameters and topics: README ("tracking_node"), launch/tracking.launch.
 //
 // The map (REP-103, z up): anchored at the first pose of the camera's body frame (the root of its tf
@@ -21,6 +23,7 @@
 #include <string>
 #include <utility>
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <message_filters/subscriber.h>
 #include <message_filters/sync_policies/approximate_time.h>
 #include <message_filters/synchronizer.h>
@@ -88,6 +91,7 @@ class TrackingNode {
                      const std::string& camera_frame);
   void publish_corrections(const ros::Time& stamp);
   void publish_state(TrackingState state);
+  void publish_diagnostics(const tracking::SessionResult& r, const ros::Time& stamp);
   void on_imu(const sensor_msgs::ImuConstPtr& imu);
   // Decides the map's levelling (R_map_body_) from this frame; false (and why) while it must wait.
   bool decide_levelling(const std::string& camera_frame, const ros::Time& stamp, const DepthImage& depth,
@@ -106,7 +110,7 @@ class TrackingNode {
   message_filters::Subscriber<sensor_msgs::Image> rgb_sub_, depth_sub_;
   message_filters::Subscriber<sensor_msgs::CameraInfo> info_sub_;
   std::unique_ptr<message_filters::Synchronizer<SyncPolicy>> sync_;
-  ros::Publisher keyframe_pub_, poses_pub_, path_pub_, state_pub_, map_id_pub_;
+  ros::Publisher keyframe_pub_, poses_pub_, path_pub_, state_pub_, map_id_pub_, diag_pub_;
   ros::Subscriber imu_sub_;
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<ReplayTfListener> tf_listener_;
@@ -125,6 +129,8 @@ class TrackingNode {
   uint64_t lost_since_frame_ = 0;
   uint64_t frames_ = 0;
   std::deque<double> recent_ms_;
+  std::map<std::string, uint64_t> frames_per_state_;
+  ros::WallTime last_diag_;
 
   // Arrival times (wall clock) per input topic and of the last synchronised frame.
   ros::WallTime last_rgb_, last_depth_, last_info_, last_frame_;
@@ -216,6 +222,7 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   path_pub_ = nh_.advertise<nav_msgs::Path>("path", 1, /*latch=*/true);
   state_pub_ = nh_.advertise<std_msgs::String>("tracking_state", 10, /*latch=*/true);
   map_id_pub_ = nh_.advertise<std_msgs::String>("map_id", 1, /*latch=*/true);
+  diag_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
   path_.header.frame_id = p_.tf.map_frame;
   // The map's identity: objects made in one map mean nothing in another. A tracker run makes a map
   // of its own (its origin is where this run began); a map read from tf is whoever publishes it.
@@ -497,10 +504,15 @@ void TrackingNode::handle_result(const tracking::SessionResult& r, const std_msg
           }
         }
         break;
+      case TrackingState::kDegraded:
+        ROS_WARN("tracking: degraded at %.3f: %s (%d inliers)", stamp.toSec(),
+                 tracking::reasons_to_string(r.track.quality.reasons).c_str(), r.track.quality.inliers);
+        break;
       case TrackingState::kLost:
         lost_since_frame_ = frames_;
-        ROS_WARN("tracking: lost at %.3f (%d features, %d inliers): relocalising", stamp.toSec(),
-                 r.track.features, r.track.inliers);
+        ROS_WARN("tracking: lost at %.3f: %s (%d features, %d inliers)", stamp.toSec(),
+                 tracking::reasons_to_string(r.track.quality.reasons).c_str(), r.track.features,
+                 r.track.quality.inliers);
         break;
       case TrackingState::kNotInitialised:
         ROS_INFO("tracking: waiting for a frame with enough depth to initialise");
@@ -508,6 +520,8 @@ void TrackingNode::handle_result(const tracking::SessionResult& r, const std_msg
     }
   }
   publish_state(r.track.state);
+  ++frames_per_state_[tracking::to_string(r.track.state)];
+  publish_diagnostics(r, stamp);
 
   if (p_.pose_source == "tracker") {
     recent_ms_.push_back(r.track.milliseconds);
@@ -518,7 +532,7 @@ void TrackingNode::handle_result(const tracking::SessionResult& r, const std_msg
                       static_cast<unsigned long long>(frames_), static_cast<unsigned long long>(session_->keyframes()),
                       sorted[sorted.size() / 2], sorted.size());
   }
-  if (r.track.state != TrackingState::kOk) return;
+  if (!tracking::has_pose(r.track.state)) return;
 
   if (p_.publish_tf && p_.pose_source == "tracker") {
     std::string error;
@@ -562,6 +576,52 @@ void TrackingNode::publish_corrections(const ros::Time& stamp) {
     msg.poses.push_back(to_pose_msg(to_map(c.T_wc)));
   }
   poses_pub_.publish(msg);
+}
+
+void TrackingNode::publish_diagnostics(const tracking::SessionResult& r, const ros::Time& stamp) {
+  // Once a second, and at once when the state changes.
+  const ros::WallTime now = ros::WallTime::now();
+  if (!r.state_changed && !last_diag_.isZero() && (now - last_diag_).toSec() < 1.0) return;
+  last_diag_ = now;
+  const tracking::TrackQuality& q = r.track.quality;
+  diagnostic_msgs::DiagnosticStatus status;
+  status.name = "dqo_map: tracking";
+  status.hardware_id = "dqo_map";
+  switch (r.track.state) {
+    case TrackingState::kOk:
+      status.level = diagnostic_msgs::DiagnosticStatus::OK;
+      break;
+    case TrackingState::kDegraded:
+    case TrackingState::kNotInitialised:
+      status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+      break;
+    case TrackingState::kLost:
+      status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+      break;
+  }
+  const std::string reasons = tracking::reasons_to_string(q.reasons);
+  status.message = std::string(tracking::to_string(r.track.state)) + (reasons.empty() ? "" : ": " + reasons);
+  auto add = [&status](const std::string& key, const std::string& value) {
+    diagnostic_msgs::KeyValue kv;
+    kv.key = key;
+    kv.value = value;
+    status.values.push_back(kv);
+  };
+  add("state", tracking::to_string(r.track.state));
+  add("reasons", reasons);
+  add("inliers", std::to_string(q.inliers));
+  add("inlier_spread", std::to_string(q.spread));
+  add("dense_ok", q.dense_tried ? (q.dense_ok ? "true" : "false") : "not run");
+  add("dense_whitened_rms", std::to_string(q.dense_rms));
+  add("dense_inlier_ratio", std::to_string(q.dense_inlier_ratio));
+  add("features_dense_disagreement_m", std::to_string(q.disagreement_m));
+  add("features_dense_disagreement_deg", std::to_string(q.disagreement_deg));
+  add("milliseconds", std::to_string(r.track.milliseconds));
+  for (const auto& [state, n] : frames_per_state_) add("frames_" + state, std::to_string(n));
+  diagnostic_msgs::DiagnosticArray array;
+  array.header.stamp = stamp;
+  array.status.push_back(status);
+  diag_pub_.publish(array);
 }
 
 void TrackingNode::publish_state(TrackingState state) {

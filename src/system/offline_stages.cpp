@@ -35,7 +35,10 @@ mapping::MappingEvent to_mapping_event(const objects::ObjectEvent& e) {
 
 void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCamera& camera,
                         bool anchor, OfflineStages* stages) {
-  auto session = std::make_shared<tracking::TrackingSession>(config);
+  // Offline: the same output for the same input on any machine load.
+  tracking::TrackingConfig offline = config;
+  offline.tracker.local_ba.deterministic = true;
+  auto session = std::make_shared<tracking::TrackingSession>(offline);
   auto anchors = std::make_shared<TrajectoryAnchor>(anchor);
   stages->pose = [session, anchors, camera](const Frame& frame) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -44,7 +47,7 @@ void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCam
     const tracking::SessionResult r = session->track(camera, input);
     out.ms = ms_since(t0);
     if (r.skipped != tracking::SessionResult::Skip::kNone ||
-        r.track.state != tracking::TrackingState::kOk) {
+        !tracking::has_pose(r.track.state)) {
       return out;
     }
     out.T_wc = anchors->apply(frame, r.track.T_wc);

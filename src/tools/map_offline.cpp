@@ -43,6 +43,7 @@
 #include "dqo_map/system/object_meshes.h"
 #include "dqo_map/system/offline_metrics.h"
 #include "dqo_map/system/offline_stages.h"
+#include "dqo_map/tracking/rectified_frame_source.h"
 #endif
 
 namespace {
@@ -215,7 +216,11 @@ std::shared_ptr<const dqo::FrameSource> open_input(const Options& o, std::string
   auto reader = dqo::open_dataset(o.input, error);
   if (!reader) return nullptr;
   *kind = reader->format() + " dataset";
-  std::shared_ptr<const dqo::FrameSource> r(std::move(reader));
+  if (!reader->info().distortion_model.empty()) *kind += ", " + reader->info().distortion_model + " undistorted";
+  // Lens distortion comes off first, as tracking_node does it: the rest assumes a pinhole camera.
+  std::shared_ptr<const dqo::FrameSource> r =
+      dqo::tracking::rectified(std::shared_ptr<const dqo::FrameSource>(std::move(reader)), error);
+  if (!r) return nullptr;
   return o.scale == 1.0 ? r : std::make_shared<dqo::ScaledFrameSource>(r, o.scale);
 #else
   *error = o.input + ": this build reads scene YAML files only (datasets need io/: OpenCV, Open3D)";

@@ -23,6 +23,7 @@
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/objects/params_yaml.h"
 #include "dqo_map/system/object_pipeline.h"
+#include "dqo_map/tracking/rectified_frame_source.h"
 
 namespace {
 
@@ -127,8 +128,15 @@ int main(int argc, char** argv) {
   }
   dqo::DatasetReaderParams reader_params;
   reader_params.load_meshes = false;
-  const auto reader = dqo::open_dataset(dataset, reader_params, &error);
+  const std::shared_ptr<const dqo::DatasetReader> reader =
+      dqo::open_dataset(dataset, reader_params, &error);
   if (!reader) {
+    std::fprintf(stderr, "dqo_objects: %s\n", error.c_str());
+    return 1;
+  }
+  // Lens distortion comes off first (images, masks and boxes), as the ROS path does it.
+  const std::shared_ptr<const dqo::FrameSource> source = dqo::tracking::rectified(reader, &error);
+  if (!source) {
     std::fprintf(stderr, "dqo_objects: %s\n", error.c_str());
     return 1;
   }
@@ -143,7 +151,7 @@ int main(int argc, char** argv) {
 
   dqo::ProgressBar bar("objects", total);
   const dqo::system::ObjectPipelineResult r = dqo::system::run_object_pipeline(
-      *reader, params, trajectory ? &*trajectory : nullptr, [&bar](int done, int) { bar.update(done); });
+      *source, params, trajectory ? &*trajectory : nullptr, [&bar](int done, int) { bar.update(done); });
   if (!r.ok) std::fprintf(stderr, "\ndqo_objects: stopped: %s\n", r.error.c_str());
   if (r.keyframes == 0) {
     std::fprintf(stderr, "dqo_objects: no keyframe had a pose (%d frames without one)\n", r.frames_without_pose);

@@ -3,12 +3,17 @@
 // the same tracking stage as tracking_node (dqo::tracking::TrackingSession). Prints the median
 // tracking time per frame, the lost frames and, where the dataset has ground truth, the ATE.
 //
-//   dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N]
+//   dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]
+//             [--camera camera.yaml]
+// Images with lens distortion (camera.yaml's distortion_model and distortion) are undistorted
+// first, as tracking_node does with a CameraInfo.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <future>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -18,6 +23,7 @@
 #include "dqo_map/eval/ate.h"
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/tracking/params_yaml.h"
+#include "dqo_map/tracking/rectified_frame_source.h"
 #include "dqo_map/tracking/tracking_session.h"
 
 namespace {
@@ -25,17 +31,27 @@ namespace {
 using dqo::median;
 
 constexpr char kUsage[] =
-    "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N]\n"
+    "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]\n"
+    "                 [--camera camera.yaml] [--verbose]\n"
     "  DATASET_DIR        own format (camera.yaml, rgb/), TUM RGB-D (rgb.txt, depth.txt) or Replica\n"
     "  --out traj.txt     the estimated trajectory, TUM format (T_world_camera of tracked frames)\n"
     "  --config FILE      tracking parameters (default: the built-in ones, as config/tracking.yaml)\n"
-    "  --frames N         track only the first N frames\n";
+    "  --frames N         track only the first N frames\n"
+    "  --every K          track every K-th of them (frames 0, K, 2K, ...): larger baselines\n"
+    "  --camera FILE      a TUM sequence's intrinsics and distortion from FILE, not its camera.yaml\n"
+    "                     (e.g. config/cameras/tum_fr1.yaml)\n"
+    "  --verbose          one line per frame on stderr: state, its evidence and reasons\n"
+    "Prints the frames per state (ok, degraded, lost) and why frames were not ok. The trajectory\n"
+    "holds the ok and degraded frames (lost frames have no pose).\n";
 
 struct Options {
   std::string dataset;
   std::string out;
   std::string config;
+  std::string camera;
   int frames = -1;
+  int every = 1;
+  bool verbose = false;
 };
 
 int usage_error(const std::string& message) {
@@ -54,16 +70,26 @@ int main(int argc, char** argv) {
     if (a == "-h" || a == "--help") {
       std::fputs(kUsage, stdout);
       return 0;
-    } else if (a == "--out" || a == "--config" || a == "--frames") {
+    } else if (a == "--verbose") {
+      o.verbose = true;
+    } else if (a == "--out" || a == "--config" || a == "--frames" || a == "--every" ||
+               a == "--camera") {
       const char* v = value();
       if (!v) return usage_error(a + " needs a value");
       if (a == "--out") o.out = v;
       if (a == "--config") o.config = v;
+      if (a == "--camera") o.camera = v;
       if (a == "--frames") {
         char* end = nullptr;
         const long n = std::strtol(v, &end, 10);
         if (end == v || *end != '\0' || n < 1) return usage_error("--frames takes a whole number >= 1");
         o.frames = static_cast<int>(n);
+      }
+      if (a == "--every") {
+        char* end = nullptr;
+        const long n = std::strtol(v, &end, 10);
+        if (end == v || *end != '\0' || n < 1) return usage_error("--every takes a whole number >= 1");
+        o.every = static_cast<int>(n);
       }
     } else if (!a.empty() && a[0] == '-') {
       return usage_error("unknown option " + a);
@@ -94,7 +120,18 @@ int main(int argc, char** argv) {
   }
   dqo::DatasetReaderParams reader_params;
   reader_params.load_meshes = false;
-  const auto reader = dqo::open_dataset(o.dataset, reader_params, &error);
+  reader_params.tum.camera_file = o.camera;
+  const std::shared_ptr<const dqo::DatasetReader> dataset =
+      dqo::open_dataset(o.dataset, reader_params, &error);
+  if (!dataset) {
+    std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
+    return 1;
+  }
+  if (!o.camera.empty() && dataset->format() != "tum") {
+    std::fprintf(stderr, "dqo_track: --camera applies to TUM sequences only\n");
+    return 1;
+  }
+  const std::shared_ptr<const dqo::FrameSource> reader = dqo::tracking::rectified(dataset, &error);
   if (!reader) {
     std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
     return 1;
@@ -105,14 +142,20 @@ int main(int argc, char** argv) {
     return 1;
   }
   const dqo::PinholeCamera& camera = reader->info().camera;
-  std::fprintf(stderr, "dqo_track: %s dataset %s, %d frames of %dx%d\n", reader->format().c_str(),
-               o.dataset.c_str(), total, camera.width, camera.height);
+  const int count = (total + o.every - 1) / o.every;  // frames tracked: 0, K, 2K, ...
+  const std::string lens = dataset->info().distortion_model;
+  std::fprintf(stderr, "dqo_track: %s dataset %s, %d frames of %dx%d%s\n", dataset->format().c_str(),
+               o.dataset.c_str(), count, camera.width, camera.height,
+               lens.empty() ? "" : (", " + lens + " undistorted").c_str());
 
+  // Bit-identical output for the same input on any machine load (local BA at fixed points).
+  config.tracker.local_ba.deterministic = true;
   dqo::tracking::TrackingSession session(config);
   dqo::Trajectory estimate, ground_truth;
   std::vector<double> ms;
-  int lost = 0, not_initialised = 0, relocalised = 0, skipped = 0;
-  dqo::ProgressBar progress("tracking", total);
+  int ok = 0, degraded = 0, lost = 0, not_initialised = 0, relocalised = 0, skipped = 0;
+  std::map<std::string, int> reasons;  // why frames were degraded or lost
+  dqo::ProgressBar progress("tracking", count);
   // Reading (PNG decoding) of frame i + 1 overlaps tracking of frame i.
   auto read = [&](int i) {
     return std::async(std::launch::async, [&reader, i] {
@@ -122,9 +165,10 @@ int main(int argc, char** argv) {
     });
   };
   auto next = read(0);
-  for (int i = 0; i < total; ++i) {
+  for (int j = 0; j < count; ++j) {
+    const int i = j * o.every;
     auto [frame, read_error] = next.get();
-    if (i + 1 < total) next = read(i + 1);
+    if (j + 1 < count) next = read(i + o.every);
     if (!frame) {
       std::fprintf(stderr, "\ndqo_track: frame %d: %s\n", i, read_error.c_str());
       return 1;
@@ -134,7 +178,7 @@ int main(int argc, char** argv) {
     const dqo::tracking::SessionResult r = session.track(camera, input);
     if (r.skipped != dqo::tracking::SessionResult::Skip::kNone) {
       ++skipped;
-      progress.update(i + 1);
+      progress.update(j + 1);
       continue;
     }
     if (r.reset) {
@@ -145,6 +189,11 @@ int main(int argc, char** argv) {
     if (r.track.relocalised) ++relocalised;
     switch (r.track.state) {
       case dqo::tracking::TrackingState::kOk:
+        ++ok;
+        estimate.emplace_back(frame->timestamp, r.track.T_wc);
+        break;
+      case dqo::tracking::TrackingState::kDegraded:
+        ++degraded;
         estimate.emplace_back(frame->timestamp, r.track.T_wc);
         break;
       case dqo::tracking::TrackingState::kLost:
@@ -154,7 +203,20 @@ int main(int argc, char** argv) {
         ++not_initialised;
         break;
     }
-    progress.update(i + 1);
+    if (r.track.state != dqo::tracking::TrackingState::kOk) {
+      ++reasons[dqo::tracking::reasons_to_string(r.track.quality.reasons)];
+    }
+    if (o.verbose) {
+      const dqo::tracking::TrackQuality& q = r.track.quality;
+      std::fprintf(stderr,
+                   "frame %4d %-15s inl %4d spread %.2f dense %d rms %.2f ratio %.2f "
+                   "disagree %.3f m %.2f deg kf %d %6.2f ms %s\n",
+                   i, dqo::tracking::to_string(r.track.state), q.inliers, q.spread, q.dense_ok,
+                   q.dense_rms, q.dense_inlier_ratio, q.disagreement_m, q.disagreement_deg,
+                   r.track.new_keyframe, r.track.milliseconds,
+                   dqo::tracking::reasons_to_string(q.reasons).c_str());
+    }
+    progress.update(j + 1);
   }
 
   if (!dqo::write_tum_trajectory(o.out, estimate, &error)) {
@@ -162,12 +224,19 @@ int main(int argc, char** argv) {
     return 1;
   }
   const dqo::tracking::Tracker* tracker = session.tracker();
-  std::printf("frames: %d (tracked %zu, lost %d, not initialised %d, skipped %d)\n", total,
+  std::printf("frames: %d (tracked %zu, lost %d, not initialised %d, skipped %d)\n", count,
               estimate.size(), lost, not_initialised, skipped);
+  std::printf("states: ok %d, degraded %d, lost %d, not_initialised %d\n", ok, degraded, lost,
+              not_initialised);
+  for (const auto& [why, n] : reasons) {
+    std::printf("  %d frames not ok: %s\n", n, why.empty() ? "(not initialised)" : why.c_str());
+  }
   std::printf("relocalisations: %d\n", relocalised);
   std::printf("keyframes: %zu tracker, %llu mapping; map points: %zu\n",
               tracker ? tracker->num_keyframes() : size_t{0},
               static_cast<unsigned long long>(session.keyframes()), tracker ? tracker->num_map_points() : size_t{0});
+  std::printf("local_ba_runs: %llu\n",
+              static_cast<unsigned long long>(tracker ? tracker->local_ba_runs() : 0));
   std::printf("wrote: %s\n", o.out.c_str());
   if (ground_truth.size() >= 3 && estimate.size() >= 3) {
     const auto ate = dqo::eval::compute_ate(estimate, ground_truth, dqo::eval::AteParams{}, &error);
@@ -179,5 +248,8 @@ int main(int argc, char** argv) {
   }
   std::printf("lost_frames: %d\n", lost);
   std::printf("tracking_ms_median: %.2f\n", median(ms));
+  double sum = 0.0;
+  for (const double m : ms) sum += m;
+  std::printf("tracking_ms_mean: %.2f\n", ms.empty() ? 0.0 : sum / static_cast<double>(ms.size()));
   return 0;
 }

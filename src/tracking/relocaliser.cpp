@@ -1,7 +1,9 @@
 #include "relocaliser.h"
 
 #include <algorithm>
+#include <random>
 
+#include <Eigen/Geometry>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
@@ -105,6 +107,75 @@ PnpResult solve_pnp(const OrbFrame& frame, const KeyframeMatches& km, const MapS
   return result;
 }
 
+// RGB-D relocalisation: the frame's keypoints have depth, so three matches fix a rigid pose and a
+// match agrees with it in 3D, which tells right from wrong far more sharply than a reprojection
+// does. Where the texture repeats, brute-force matching keeps few right matches (a ratio test
+// rejects look-alikes): a handful agreeing in 3D is a hypothesis, and the caller checks it
+// against the local map (relocalise_frame: reloc.min_inliers after a projection search).
+constexpr int kRigidIterations = 300;
+constexpr int kMinRigidInliers = 8;
+
+PnpResult solve_rigid(const OrbFrame& frame, const KeyframeMatches& km, const MapStore& map,
+                      const PinholeCamera& camera) {
+  PnpResult result;
+  result.keyframe = km.keyframe;
+  std::vector<Eigen::Vector3d> p_c, p_w;
+  std::vector<size_t> index;
+  for (size_t i = 0; i < km.matches.size(); ++i) {
+    const auto& [k, id] = km.matches[i];
+    if (!frame.has_depth(k)) continue;
+    p_c.push_back(frame.point_c(k, camera));
+    p_w.push_back(map.map_point(id)->p_w);
+    index.push_back(i);
+  }
+  const int n = static_cast<int>(p_c.size());
+  if (n < kMinRigidInliers) return result;
+  // A fixed seed: relocalisation gives the same answer for the same input (offline determinism).
+  std::mt19937 rng(12345);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  auto inliers_of = [&](const SE3& T_wc, std::vector<int>* in) {
+    in->clear();
+    for (int i = 0; i < n; ++i) {
+      // Depth noise grows with z²; 2 cm floor for keypoint position and map point error.
+      const double z = p_c[i].z();
+      const double tolerance = std::max(0.02, 3.0 * 0.0015 * z * z);
+      if ((T_wc * p_c[i] - p_w[i]).norm() < tolerance) in->push_back(i);
+    }
+  };
+  std::vector<int> best, in;
+  SE3 best_T;
+  for (int it = 0; it < kRigidIterations; ++it) {
+    const int a = pick(rng), b = pick(rng), c = pick(rng);
+    if (a == b || b == c || a == c) continue;
+    Eigen::Matrix3d src, dst;
+    src << p_c[a], p_c[b], p_c[c];
+    dst << p_w[a], p_w[b], p_w[c];
+    // Degenerate triples (nearly collinear) fit anything along their line.
+    if ((p_c[b] - p_c[a]).cross(p_c[c] - p_c[a]).norm() < 1e-4) continue;
+    const Eigen::Matrix4d M = Eigen::umeyama(src, dst, false);
+    const SE3 T = SE3::from_rotation_translation(M.topLeftCorner<3, 3>(), M.topRightCorner<3, 1>());
+    inliers_of(T, &in);
+    if (in.size() > best.size()) {
+      best = in;
+      best_T = T;
+    }
+  }
+  if (static_cast<int>(best.size()) < kMinRigidInliers) return result;
+  // Refit on every inlier.
+  Eigen::Matrix3Xd src(3, best.size()), dst(3, best.size());
+  for (size_t j = 0; j < best.size(); ++j) {
+    src.col(static_cast<Eigen::Index>(j)) = p_c[best[j]];
+    dst.col(static_cast<Eigen::Index>(j)) = p_w[best[j]];
+  }
+  const Eigen::Matrix4d M = Eigen::umeyama(src, dst, false);
+  result.T_wc = SE3::from_rotation_translation(M.topLeftCorner<3, 3>(), M.topRightCorner<3, 1>());
+  inliers_of(result.T_wc, &best);
+  if (static_cast<int>(best.size()) < kMinRigidInliers) return result;
+  for (const int j : best) result.matches.push_back(km.matches[index[j]]);
+  result.ok = true;
+  return result;
+}
+
 }  // namespace
 
 PnpResult pnp_against_keyframe(const OrbFrame& frame, const KeyFrame& keyframe,
@@ -133,6 +204,11 @@ PnpResult relocalise(const OrbFrame& frame, const MapStore& map,
   for (size_t i = 0; i < tries; ++i) {
     PnpResult r =
         solve_pnp(frame, ranked[i], map, camera, scales, pose_params, params.min_inliers);
+    if (r.ok) return r;
+  }
+  // PnP found nothing among the matches: hypotheses from those that agree in 3D.
+  for (size_t i = 0; i < tries; ++i) {
+    PnpResult r = solve_rigid(frame, ranked[i], map, camera);
     if (r.ok) return r;
   }
   return PnpResult{};

@@ -32,7 +32,9 @@ PnpResult pnp_against_keyframe(const OrbFrame& frame, const KeyFrame& keyframe,
                                int min_inliers);
 
 // Tries the candidates, the most promising first (by descriptor matches), at most `max_pnp` of
-// them through PnP; returns the first that succeeds.
+// them through PnP, then the same through a 3-point rigid RANSAC on the matches with depth (a
+// hypothesis from as few as 8 matches agreeing in 3D: the caller must confirm it against the
+// local map); returns the first that succeeds.
 PnpResult relocalise(const OrbFrame& frame, const MapStore& map,
                      const std::vector<uint64_t>& candidates, const PinholeCamera& camera,
                      const ScalePyramid& scales, const PoseOptimiserParams& pose_params,

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <unordered_set>
 
 #include <Eigen/Eigenvalues>
@@ -19,6 +20,8 @@ const char* to_string(TrackingState state) {
       return "not_initialised";
     case TrackingState::kOk:
       return "ok";
+    case TrackingState::kDegraded:
+      return "degraded";
     case TrackingState::kLost:
       return "lost";
   }
@@ -58,7 +61,11 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
     if (last_ && state_ == TrackingState::kOk) result.T_wc = last_->T_wc;
     return result;
   }
-  apply_ba_results();
+  if (params_.local_ba.deterministic) {
+    apply_due_ba_result(frame_counter_ + 1);
+  } else {
+    apply_ba_results();
+  }
   submit_local_ba();
 
   TrackedFrame frame;
@@ -81,10 +88,13 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
       result = track_frame(&frame, pyramid);
       break;
     case TrackingState::kLost:
+      // Relocalisation needs features: with dense alignment alone (use_features false) a lost
+      // tracker stays lost, since a pose chained from a guess across the gap would be wrong.
       result = track_lost(&frame);
       break;
   }
   result.features = features;
+  reported_state_ = result.state;
   if (pyramid != nullptr) {
     std::swap(current_pyramid_, last_pyramid_);
     has_last_pyramid_ = true;
@@ -116,75 +126,165 @@ TrackResult Tracker::Impl::initialise(TrackedFrame* frame, const RgbdPyramid* py
   return result;
 }
 
+QualityEvidence Tracker::Impl::evidence_base() const {
+  QualityEvidence e;
+  e.use_features = params_.use_features;
+  e.use_dense = params_.use_dense;
+  e.min_inliers = params_.min_inliers_ok;
+  return e;
+}
+
+double Tracker::Impl::spread_of(const TrackedFrame& frame) const {
+  std::vector<Eigen::Vector2f> uv;
+  for (size_t k = 0; k < frame.map_points.size(); ++k)
+    if (frame.map_points[k] != kNoId) uv.push_back(frame.features.keypoints[k].uv);
+  return inlier_spread(uv, camera_);
+}
+
+int Tracker::Impl::depth_inliers_of(const TrackedFrame& frame) const {
+  int n = 0;
+  for (size_t k = 0; k < frame.map_points.size(); ++k)
+    n += frame.map_points[k] != kNoId && frame.features.has_depth(static_cast<int>(k));
+  return n;
+}
+
+namespace {
+
+double angle_deg(const SE3& T) {
+  const double w = std::min(1.0, std::abs(T.quaternion().w()));
+  return 2.0 * std::acos(w) * 180.0 / M_PI;
+}
+
+}  // namespace
+
 TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* pyramid) {
   TrackResult result;
   const SE3 T_wc_mm = last_->T_wc * (has_velocity_ ? velocity_ : SE3());
-  const std::optional<DensePrior> prior = align_to_last(pyramid);
+  DenseResult dense;
+  const bool dense_tried = pyramid != nullptr && has_last_pyramid_ && last_;
+  const std::optional<DensePrior> prior = align_to_last(pyramid, &dense);
   const FeatureOutcome features = track_features(frame, prior ? &*prior : nullptr, T_wc_mm);
 
+  QualityEvidence e = evidence_base();
+  e.dense_tried = dense_tried;
+  e.dense_ok = prior.has_value();
+  e.dense_rms = dense.whitened_rms;
+  e.dense_inlier_ratio = dense.inlier_ratio;
+  const SE3 T_wc_dense = prior ? prior->T_w_ref * prior->T_ref_cur : SE3();
+  auto compare = [&](const SE3& T_wc_features) {
+    if (!prior) return;
+    const SE3 delta = T_wc_dense.inverse() * T_wc_features;
+    e.compared = true;
+    e.disagreement_m = delta.translation().norm();
+    e.disagreement_deg = angle_deg(delta);
+  };
+
+  SE3 T_wc;
+  bool features_ok = false;
   if (features.ok) {
-    accumulate_odometry(prior ? &*prior : nullptr, features.T_wc);
-    accept(frame, features.T_wc, features.inliers, true, true, &result);
-    return result;
-  }
-  if (prior) {
+    T_wc = features.T_wc;
+    features_ok = true;
+    e.inliers = features.inliers;
+    e.spread = spread_of(*frame);
+    e.depth_inliers = depth_inliers_of(*frame);
+    compare(features.T_wc);
+  } else if (prior) {
     // Features too few (a plain scene, a fast turn): the dense alignment holds the pose, fused
     // with whatever features agreed with it.
-    const SE3 T_wc = features.used_prior ? features.T_wc : prior->T_w_ref * prior->T_ref_cur;
-    accumulate_odometry(&*prior, T_wc);
-    accept(frame, T_wc, features.inliers, false, true, &result);
+    T_wc = features.used_prior ? features.T_wc : T_wc_dense;
+    e.inliers = features.used_prior ? features.inliers : 0;
+    e.spread = features.used_prior ? spread_of(*frame) : 0.0;
+    e.depth_inliers = features.used_prior ? depth_inliers_of(*frame) : 0;
+    if (features.contradicted_dense) {
+      e.inliers = features.inliers_alone;
+      compare(features.T_wc_alone);
+    }
+  } else {
+    odometry_valid_ = false;
+    // Neither held: try to relocalise at once rather than drift on the motion model.
+    int inliers = 0;
+    if (relocalise_frame(frame, &T_wc, &inliers)) {
+      QualityEvidence r = evidence_base();
+      r.inliers = inliers;
+      r.spread = spread_of(*frame);
+      r.depth_inliers = depth_inliers_of(*frame);
+      const QualityVerdict verdict = assess_quality(r, params_.quality);
+      has_velocity_ = false;
+      accept(frame, T_wc, inliers, true, false, &result);
+      result.state = verdict.state;
+      result.quality = verdict.quality;
+      return result;
+    }
+    e.predicted = true;
+    T_wc = T_wc_mm;
+  }
+
+  const QualityVerdict verdict = assess_quality(e, params_.quality);
+  if (verdict.state != TrackingState::kLost) {
+    if (prior) accumulate_odometry(&*prior, T_wc);
+    else odometry_valid_ = false;
+    // Keyframes from poses the RGB-D evidence supports: a monocular pose (depth dropped) adds no
+    // points and would anchor the map on its weaker rotation.
+    const uint32_t no_depth = quality_reason::kNoDepth | quality_reason::kDenseFailed;
+    const bool keyframe_ok = (verdict.quality.reasons & no_depth) != no_depth;
+    accept(frame, T_wc, e.inliers, features_ok, true, &result, keyframe_ok);
+    result.state = verdict.state;
+    result.quality = verdict.quality;
     return result;
   }
+
+  // No pose the evidence supports: report lost, make no keyframe, count no map point as found.
+  // The best guess (dense, else the motion model) carries the next frame's search; after
+  // frames_to_lost such frames in a row, relocalisation takes over.
   odometry_valid_ = false;
-  // Neither held: try to relocalise at once rather than drift on the motion model.
-  SE3 T_wc;
-  int inliers = 0;
-  if (relocalise_frame(frame, &T_wc, &inliers)) {
-    has_velocity_ = false;
-    accept(frame, T_wc, inliers, true, false, &result);
-    return result;
-  }
   ++failures_;
   std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
+  result.state = TrackingState::kLost;
+  result.quality = verdict.quality;
+  result.predicted = e.predicted;
+  result.T_wc = T_wc;
   if (failures_ >= params_.frames_to_lost) {
     state_ = TrackingState::kLost;
     has_velocity_ = false;
-    result.state = TrackingState::kLost;
-  } else {
-    result.state = TrackingState::kOk;
-    result.T_wc = T_wc_mm;
-    result.predicted = true;
   }
-  finish_frame(frame, T_wc_mm, false);
+  finish_frame(frame, T_wc, false);
   return result;
 }
 
 TrackResult Tracker::Impl::track_lost(TrackedFrame* frame) {
   TrackResult result;
   result.state = TrackingState::kLost;
+  result.quality.reasons = quality_reason::kRelocalising;
   SE3 T_wc;
   int inliers = 0;
   if (!relocalise_frame(frame, &T_wc, &inliers)) return result;
+  QualityEvidence e = evidence_base();
+  e.inliers = inliers;
+  e.spread = spread_of(*frame);
+  e.depth_inliers = depth_inliers_of(*frame);
+  const QualityVerdict verdict = assess_quality(e, params_.quality);
   state_ = TrackingState::kOk;
   has_velocity_ = false;
   odometry_valid_ = false;
   last_relocalised_frame_ = frame->number;
   accept(frame, T_wc, inliers, true, false, &result);
+  result.state = verdict.state;
+  result.quality = verdict.quality;
   result.relocalised = true;
   return result;
 }
 
 void Tracker::Impl::accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
-                           bool update_velocity, TrackResult* result) {
+                           bool update_velocity, TrackResult* result, bool keyframe_allowed) {
   failures_ = 0;
   frame->T_wc = T_wc;
   count_found(*frame);
-  if (need_keyframe(*frame, inliers, features_ok)) {
+  if (keyframe_allowed && need_keyframe(*frame, inliers, features_ok)) {
     create_keyframe(frame);
     result->new_keyframe = true;
   }
   finish_frame(frame, T_wc, update_velocity);
-  result->state = TrackingState::kOk;
+  result->state = TrackingState::kOk;  // the caller sets the assessed state
   result->T_wc = T_wc;
   result->inliers = inliers;
 }
@@ -234,10 +334,11 @@ void Tracker::Impl::accumulate_odometry(const DensePrior* prior, const SE3& T_wc
       A * odometry_covariance_ * A.transpose() + inverse_psd(prior->information, 1e-3);
 }
 
-std::optional<DensePrior> Tracker::Impl::align_to_last(const RgbdPyramid* pyramid) {
+std::optional<DensePrior> Tracker::Impl::align_to_last(const RgbdPyramid* pyramid,
+                                                       DenseResult* result) {
   if (pyramid == nullptr || !has_last_pyramid_ || !last_) return std::nullopt;
-  const DenseResult dense =
-      align_dense(last_pyramid_, *pyramid, has_velocity_ ? velocity_ : SE3(), params_.dense);
+  *result = align_dense(last_pyramid_, *pyramid, has_velocity_ ? velocity_ : SE3(), params_.dense);
+  const DenseResult& dense = *result;
   if (!dense.ok) return std::nullopt;
   DensePrior prior;
   prior.T_w_ref = last_->T_wc;
@@ -282,7 +383,10 @@ FeatureOutcome Tracker::Impl::track_features(TrackedFrame* frame, const DensePri
     } else {
       std::fill(frame->map_points.begin(), frame->map_points.end(), kNoId);
       out.used_prior = false;
-      return out;  // the caller takes the dense pose
+      out.contradicted_dense = alone.map_inliers >= params_.min_inliers_ok;
+      out.T_wc_alone = alone.pose.T_wc;
+      out.inliers_alone = alone.map_inliers;
+      return out;  // the caller takes the dense pose (or reports the frame lost)
     }
   }
   keep_inliers(frame, fused);
@@ -562,7 +666,7 @@ void Tracker::reset() { impl_->reset(); }
 void Tracker::register_frame(uint64_t id) { impl_->register_frame(id); }
 std::vector<CorrectedPose> Tracker::corrected_frames() { return impl_->corrected_frames(); }
 void Tracker::wait_for_mapping() { impl_->wait_for_mapping(); }
-TrackingState Tracker::state() const { return impl_->state_.load(); }
+TrackingState Tracker::state() const { return impl_->reported_state_.load(); }
 size_t Tracker::num_keyframes() const { return impl_->map_.num_keyframes(); }
 size_t Tracker::num_map_points() const { return impl_->map_.num_map_points(); }
 uint64_t Tracker::local_ba_runs() const { return impl_->ba_runs_.load(); }

@@ -20,6 +20,7 @@
 #include "matching.h"
 #include "orb_frame.h"
 #include "pose_optimiser.h"
+#include "tracking_quality.h"
 
 namespace dqo::tracking {
 
@@ -40,6 +41,11 @@ struct FeatureOutcome {
   SE3 T_wc;
   int inliers = 0;
   bool used_prior = false;  // T_wc is the fused solution (features plus the dense prior)
+  // The features alone contradicted the dense alignment and were too few to be believed over it
+  // (ok is false): their own pose and inliers, for the quality check.
+  bool contradicted_dense = false;
+  SE3 T_wc_alone;
+  int inliers_alone = 0;
 };
 
 // A pose optimisation over a frame's matches, with the keypoint of each observation (-1 for
@@ -65,7 +71,7 @@ struct Tracker::Impl {
   TrackResult track_frame(TrackedFrame* frame, const RgbdPyramid* pyramid);
   TrackResult track_lost(TrackedFrame* frame);
   bool relocalise_frame(TrackedFrame* frame, SE3* T_wc, int* inliers);
-  std::optional<DensePrior> align_to_last(const RgbdPyramid* pyramid);
+  std::optional<DensePrior> align_to_last(const RgbdPyramid* pyramid, DenseResult* dense);
   FeatureOutcome track_features(TrackedFrame* frame, const DensePrior* prior, const SE3& T_wc_mm);
   bool track_motion_model(TrackedFrame* frame, const SE3& T_wc_mm, SE3* T_wc);
   int match_last_frame(TrackedFrame* frame, const SE3& T_wc_guess, double radius,
@@ -80,7 +86,10 @@ struct Tracker::Impl {
   void finish_frame(TrackedFrame* frame, const SE3& T_wc, bool update_velocity);
   void accumulate_odometry(const DensePrior* prior, const SE3& T_wc);
   void accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
-              bool update_velocity, TrackResult* result);
+              bool update_velocity, TrackResult* result, bool keyframe_allowed = true);
+  QualityEvidence evidence_base() const;
+  double spread_of(const TrackedFrame& frame) const;
+  int depth_inliers_of(const TrackedFrame& frame) const;
 
   // ---- tracker_map.cpp: the map
   bool need_keyframe(const TrackedFrame& frame, int inliers, bool features_ok) const;
@@ -105,7 +114,10 @@ struct Tracker::Impl {
   std::unique_ptr<LocalBaWorker> ba_;
   uint64_t generation_ = 1;  // bumped by reset(): results of an older map are dropped
 
+  // The tracker's mode: kNotInitialised, kOk (tracking frame to frame) or kLost (relocalising).
   std::atomic<TrackingState> state_{TrackingState::kNotInitialised};
+  // What the last frame was reported as (kDegraded too, and kLost for a single lost frame).
+  std::atomic<TrackingState> reported_state_{TrackingState::kNotInitialised};
   int failures_ = 0;  // consecutive frames where neither features nor dense held
   uint64_t frame_counter_ = 0;
   std::optional<TrackedFrame> last_;
@@ -125,6 +137,12 @@ struct Tracker::Impl {
   std::vector<uint64_t> recent_points_;  // created lately: culled unless re-found
   size_t reloc_cursor_ = 0;
   uint64_t ba_wanted_ = kNoId;  // keyframe whose adjustment waits for the worker
+  // Deterministic mode (LocalBaParams::deterministic): one adjustment outstanding at a time, its
+  // result applied at the start of frame `ba_due_frame_`.
+  bool ba_outstanding_ = false;
+  uint64_t ba_due_frame_ = 0;
+  bool mapping_idle() const;
+  void apply_due_ba_result(uint64_t frame_number);
   // Covariance of the dense odometry since the last keyframe (right perturbation of the current
   // frame relative to it); invalid once a frame went without dense alignment.
   Eigen::Matrix<double, 6, 6> odometry_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();

@@ -54,7 +54,7 @@ bool Tracker::Impl::need_keyframe(const TrackedFrame& frame, int inliers,
   }
   const bool need_close = tracked_close < p.min_close_points && untracked_close > 70;
   const double ratio = keyframes < 2 ? 0.4 : p.min_tracked_ratio;
-  const bool mapping_idle = !ba_ || !ba_->busy();
+  const bool mapping_idle = this->mapping_idle();
   const bool c1a = since >= static_cast<uint64_t>(p.max_frames);
   const bool c1b = since >= static_cast<uint64_t>(p.min_frames) && mapping_idle;
   const bool c1c = inliers < 0.25 * reference_tracked || need_close;
@@ -239,11 +239,31 @@ void Tracker::Impl::run_local_ba(uint64_t keyframe_id) {
   submit_local_ba();
 }
 
+bool Tracker::Impl::mapping_idle() const {
+  if (!ba_) return true;
+  // Deterministic: whether the thread has finished depends on the machine's load; whether its
+  // result has been applied does not.
+  return params_.local_ba.deterministic ? !ba_outstanding_ : !ba_->busy();
+}
+
 void Tracker::Impl::submit_local_ba() {
-  if (!ba_ || ba_wanted_ == kNoId || ba_->busy()) return;
-  apply_ba_results();
-  if (map_.keyframe(ba_wanted_) != nullptr) ba_->submit(local_ba_problem(ba_wanted_));
+  if (!ba_ || ba_wanted_ == kNoId || !mapping_idle()) return;
+  if (!params_.local_ba.deterministic) apply_ba_results();
+  if (map_.keyframe(ba_wanted_) != nullptr) {
+    ba_->submit(local_ba_problem(ba_wanted_));
+    if (params_.local_ba.deterministic) {
+      ba_outstanding_ = true;
+      ba_due_frame_ = frame_counter_ + static_cast<uint64_t>(std::max(1, params_.local_ba.apply_after_frames));
+    }
+  }
   ba_wanted_ = kNoId;
+}
+
+void Tracker::Impl::apply_due_ba_result(uint64_t frame_number) {
+  if (!ba_ || !ba_outstanding_ || frame_number < ba_due_frame_) return;
+  ba_->wait_idle();
+  apply_ba_results();
+  ba_outstanding_ = false;
 }
 
 void Tracker::Impl::apply_ba_results() {
@@ -282,7 +302,7 @@ void Tracker::Impl::apply_ba_result(const LocalBaResult& result) {
 }
 
 void Tracker::Impl::register_frame(uint64_t id) {
-  if (!last_ || state_ != TrackingState::kOk || map_.keyframe(last_->reference_keyframe) == nullptr)
+  if (!last_ || !has_pose(reported_state_) || map_.keyframe(last_->reference_keyframe) == nullptr)
     return;
   std::lock_guard<std::mutex> lock(registry_mutex_);
   registered_[id] = {last_->reference_keyframe, last_->T_ref_frame};
@@ -300,9 +320,12 @@ std::vector<CorrectedPose> Tracker::Impl::corrected_frames() {
 void Tracker::Impl::wait_for_mapping() {
   if (!ba_) return;
   ba_->wait_idle();
+  apply_ba_results();
+  ba_outstanding_ = false;
   submit_local_ba();  // the one that waited for the worker, if any
   ba_->wait_idle();
   apply_ba_results();
+  ba_outstanding_ = false;
 }
 
 void Tracker::Impl::reset() {
@@ -311,6 +334,7 @@ void Tracker::Impl::reset() {
   ++generation_;
   map_.clear();
   state_ = TrackingState::kNotInitialised;
+  reported_state_ = TrackingState::kNotInitialised;
   failures_ = 0;
   last_.reset();
   has_last_pyramid_ = false;
@@ -324,6 +348,8 @@ void Tracker::Impl::reset() {
   recent_points_.clear();
   reloc_cursor_ = 0;
   ba_wanted_ = kNoId;
+  ba_outstanding_ = false;
+  ba_due_frame_ = 0;
   odometry_covariance_.setZero();
   odometry_valid_ = false;
   std::lock_guard<std::mutex> lock(registry_mutex_);

@@ -41,6 +41,8 @@ bool TrackingSession::admit(double timestamp, SessionResult* result) {
 void TrackingSession::finish(SessionResult* result) {
   state_ = result->track.state;
   result->state_changed = result->track.state != result->previous_state;
+  // Mapping keyframes only from ok frames: a degraded pose (one source of evidence, or a
+  // monocular one) is published but not built into the map; a lost frame has no pose.
   if (result->track.state == TrackingState::kOk && selector_.consider(result->track.T_wc)) {
     result->keyframe_id = next_keyframe_id_++;
   }

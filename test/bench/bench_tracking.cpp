@@ -10,6 +10,9 @@
 //                  [--no-features] [--no-ba] [--sync-ba] [--dense-weight W]
 //                  [--set NAME=VALUE]... [--verbose]        (NAME: see set_param below)
 //   bench_tracking --all [--frames N]     tabletop, room, tabletop_plain, tabletop every 10th frame
+//   bench_tracking --real [--tum DIR] [--frames N] [--fault NAME] [--verbose]
+//                                                    TUM fr1/xyz and injected faults
+//                                                    (bench_tracking_real.cpp)
 //
 // Issue 4's targets: ATE <= 1 cm on tabletop, <= 2 cm on room; no loss on all four (never kLost
 // and every frame within 5 cm); median <= 20 ms per 640x480 frame.
@@ -31,6 +34,7 @@
 #include "dqo_map/sim/renderer.h"
 #include "dqo_map/sim/scene_loader.h"
 #include "dqo_map/tracking/tracker.h"
+#include "bench_tracking_real.h"
 
 namespace {
 
@@ -145,6 +149,8 @@ bool run_case(const Case& c, const Options& options, Row* row) {
   params.use_features = options.use_features;
   params.local_ba.enabled = options.local_ba;
   params.local_ba.synchronous = options.sync_ba;
+  // The same figures on any machine load (local BA results enter at fixed frames).
+  params.local_ba.deterministic = true;
   if (options.dense_weight >= 0.0) params.pose.dense_prior_weight = options.dense_weight;
   for (const auto& [name, value] : options.overrides) set_param(&params, name, value);
   dqo::tracking::Tracker tracker(scene->camera, params);
@@ -166,13 +172,13 @@ bool run_case(const Case& c, const Options& options, Row* row) {
     truth.emplace_back(f.timestamp, f.T_wc);
     if (r.state == TrackingState::kLost) row->lost = true;
     row->predicted += r.predicted;
-    if (r.state == TrackingState::kOk) estimate.emplace_back(f.timestamp, r.T_wc);
+    if (dqo::tracking::has_pose(r.state)) estimate.emplace_back(f.timestamp, r.T_wc);
     if (options.verbose) {
       const dqo::SE3 rel = frames[0].T_wc.inverse() * f.T_wc;
       std::printf("  frame %4zu %-15s kp %4d inl %4d kf %d pred %d %6.2f ms  |t_est - t_gt0| %.4f m\n",
                   i, dqo::tracking::to_string(r.state), r.features, r.inliers, r.new_keyframe,
                   r.predicted, r.milliseconds,
-                  r.state == TrackingState::kOk ? (r.T_wc.translation() - rel.translation()).norm()
+                  dqo::tracking::has_pose(r.state) ? (r.T_wc.translation() - rel.translation()).norm()
                                                 : NAN);
     }
   }
@@ -205,8 +211,9 @@ int usage(const char* argv0) {
                "usage: %s [--scene PATH] [--every K] [--frames N] [--threads T] [--no-dense] "
                "[--no-features] [--no-ba] [--sync-ba] [--dense-weight W] [--set NAME=VALUE] "
                "[--verbose]\n"
-               "       %s --all [--frames N]\n",
-               argv0, argv0);
+               "       %s --all [--frames N]\n"
+               "       %s --real [--tum DIR] [--frames N] [--fault NAME] [--verbose]\n",
+               argv0, argv0, argv0);
   return 2;
 }
 
@@ -219,11 +226,21 @@ int main(int argc, char** argv) {
   int frames = 0;
   bool all = false;
   Options options;
+  bool real = false;
+  RealOptions real_options;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const char* v = i + 1 < argc ? argv[i + 1] : nullptr;
     if (a == "--all") {
       all = true;
+    } else if (a == "--real") {
+      real = true;
+    } else if (v != nullptr && a == "--fault") {
+      real_options.only = v;
+      ++i;
+    } else if (v != nullptr && a == "--tum") {
+      real_options.tum_dir = v;
+      ++i;
     } else if (a == "--no-dense") {
       options.use_dense = false;
     } else if (a == "--no-features") {
@@ -264,6 +281,11 @@ int main(int argc, char** argv) {
     }
   }
 
+  if (real) {
+    if (frames > 0) real_options.synthetic_frames = frames;
+    real_options.verbose = options.verbose;
+    return run_real_benchmark(DQO_SOURCE_DIR, real_options);
+  }
   std::vector<Case> cases;
   if (all) {
     cases = {{"tabletop", scenes + "tabletop.yaml", 1, frames},

@@ -193,5 +193,133 @@ TEST_F(TumFixture, WithoutGroundTruthFramesHaveNoPose) {
   EXPECT_FALSE(f->has_pose);
 }
 
+// The own format's side files beside rgb.txt: a real sequence with boxes runs the object stage.
+// Frames of the fixture: 0 = 100.000, 1 = 100.033, 2 = 100.100, 3 = 100.300.
+TEST_F(TumFixture, ReadsTheSideFilesOfTheOwnFormat) {
+  test::write_text(tmp_ / "classes.txt", "41 cup\n60 dining table\n");
+  // By frame index, by a timestamp 0.4 ms off frame 2's, and one more on frame 1.
+  test::write_text(tmp_ / "detections.txt",
+                   "1 0.5 0.5 2.5 2 41 0.9 7\n"
+                   "100.1004 1 0 3 2 60 0.75\n"
+                   "1 0 0 1 1 60 0.5\n");
+  test::write_text(tmp_ / "objects_gt.txt", "7 41 0.1 0.2 0.3 0 0 0 1 0.05 0.04 0.06\n");
+  std::filesystem::create_directories(tmp_ / "instance");
+  Image<uint16_t> by_name(kWidth, kHeight, 1, 0), by_index(kWidth, kHeight, 1, 0);
+  by_name.at(1, 1) = 7;
+  by_index.at(2, 2) = 9;
+  ASSERT_TRUE(write_png(tmp_ / "instance/100.033000.png", by_name));  // the colour image's name
+  ASSERT_TRUE(write_png(tmp_ / "instance/000003.png", by_index));     // frame 3 by index
+
+  std::string error;
+  const auto reader = open_dataset(tmp_.path(), &error);
+  ASSERT_TRUE(reader) << error;
+  EXPECT_EQ(reader->info().class_names.at(60), "dining table");
+  ASSERT_EQ(reader->info().objects.size(), 1u);
+  EXPECT_EQ(reader->info().objects[0].id, 7u);
+  EXPECT_EQ(reader->info().objects[0].class_name, "cup");
+  EXPECT_NEAR(reader->info().objects[0].box.centre.y(), 0.2, 1e-12);
+
+  std::vector<Frame> frames;
+  for (int i = 0; i < 4; ++i) {
+    auto f = reader->read_frame(i, &error);
+    ASSERT_TRUE(f) << error;
+    frames.push_back(std::move(*f));
+  }
+  EXPECT_TRUE(frames[0].detections.empty());
+  ASSERT_EQ(frames[1].detections.size(), 2u);
+  EXPECT_EQ(frames[1].detections[0].class_name, "cup");
+  EXPECT_EQ(frames[1].detections[0].gt_id, 7u);
+  EXPECT_FLOAT_EQ(frames[1].detections[0].score, 0.9f);
+  EXPECT_EQ(frames[1].detections[0].box.x_min, 0.5);
+  ASSERT_EQ(frames[2].detections.size(), 1u);
+  EXPECT_EQ(frames[2].detections[0].class_id, 60);
+  EXPECT_EQ(frames[2].detections[0].box.x_max, 3.0);
+  EXPECT_TRUE(frames[3].detections.empty());
+
+  EXPECT_TRUE(frames[0].instance.empty());
+  ASSERT_FALSE(frames[1].instance.empty());
+  EXPECT_EQ(frames[1].instance.at(1, 1), 7);
+  EXPECT_EQ(frames[1].instance.at(2, 2), 0);
+  EXPECT_TRUE(frames[2].instance.empty());
+  ASSERT_FALSE(frames[3].instance.empty());
+  EXPECT_EQ(frames[3].instance.at(2, 2), 9);
+}
+
+TEST_F(TumFixture, SideFileErrorsNameFileAndLine) {
+  std::string error;
+  // 100.2 is 100 ms from the nearest frame: beyond max_time_difference (20 ms).
+  test::write_text(tmp_ / "detections.txt", "1 0 0 1 1 1 0.5\n100.2 0 0 1 1 1 0.5\n");
+  EXPECT_FALSE(open_dataset(tmp_.path(), &error));
+  EXPECT_NE(error.find(tmp_ / "detections.txt:2:"), std::string::npos) << error;
+  test::write_text(tmp_ / "detections.txt", "4 0 0 1 1 1 0.5\n");  // frame index out of range
+  EXPECT_FALSE(open_dataset(tmp_.path(), &error));
+  EXPECT_NE(error.find(tmp_ / "detections.txt:1:"), std::string::npos) << error;
+  std::filesystem::remove(tmp_ / "detections.txt");
+
+  Image<uint16_t> wrong(kWidth + 1, kHeight, 1, 0);
+  std::filesystem::create_directories(tmp_ / "instance");
+  ASSERT_TRUE(write_png(tmp_ / "instance/000000.png", wrong));
+  const auto reader = open_dataset(tmp_.path(), &error);
+  ASSERT_TRUE(reader) << error;
+  EXPECT_FALSE(reader->read_frame(0, &error));
+  EXPECT_NE(error.find("instance/000000.png"), std::string::npos) << error;
+}
+
+TEST_F(TumFixture, LensDistortionFromCameraYaml) {
+  const std::string pinhole = "width: 4\nheight: 3\nfx: 517.3\nfy: 516.5\ncx: 318.6\ncy: 255.3\n";
+  std::string error;
+  {
+    const auto reader = open_dataset(tmp_.path(), &error);
+    ASSERT_TRUE(reader) << error;
+    EXPECT_TRUE(reader->info().distortion_model.empty());
+    EXPECT_TRUE(reader->info().distortion.empty());
+  }
+  // Fewer coefficients than the model takes are padded with zeros (OpenCV's rule).
+  test::write_text(tmp_ / "camera.yaml",
+                   pinhole + "distortion_model: plumb_bob\ndistortion: [0.2624, -0.9531, -0.0054, 0.0026]\n");
+  {
+    const auto reader = open_dataset(tmp_.path(), &error);
+    ASSERT_TRUE(reader) << error;
+    EXPECT_EQ(reader->info().distortion_model, "plumb_bob");
+    EXPECT_EQ(reader->info().distortion,
+              (std::vector<double>{0.2624, -0.9531, -0.0054, 0.0026, 0.0}));
+  }
+  test::write_text(tmp_ / "camera.yaml",
+                   pinhole + "distortion_model: rational_polynomial\ndistortion: [1, 2, 3, 4, 5, 6, 7, 8]\n");
+  {
+    const auto reader = open_dataset(tmp_.path(), &error);
+    ASSERT_TRUE(reader) << error;
+    EXPECT_EQ(reader->info().distortion.size(), 8u);
+    EXPECT_EQ(reader->info().distortion[7], 8.0);
+  }
+  // A calibration kept apart from the data takes the place of the folder's camera.yaml.
+  test::write_text(tmp_ / "fr1.yaml",
+                   pinhole + "distortion_model: plumb_bob\ndistortion: [0.5, 0, 0, 0, 0]\n");
+  {
+    DatasetReaderParams params;
+    params.tum.camera_file = tmp_ / "fr1.yaml";
+    const auto reader = open_dataset(tmp_.path(), params, &error);
+    ASSERT_TRUE(reader) << error;
+    EXPECT_EQ(reader->info().distortion_model, "plumb_bob");
+    EXPECT_EQ(reader->info().distortion[0], 0.5);
+  }
+
+  const std::pair<std::string, std::string> bad[] = {
+      {"distortion_model: plumb_bob\ndistortion: [1, 2, 3, 4, 5, 6]\n", "at most 5"},
+      {"distortion_model: fisheye\ndistortion: [1, 2, 3, 4]\n", "unknown distortion_model"},
+      {"distortion_model: plumb_bob\n", "go together"},
+      {"distortion: [1, 2, 3, 4, 5]\n", "go together"},
+      {"distortion_model: plumb_bob\ndistortion: [1, x, 3, 4, 5]\n", "finite number"},
+      {"distortion_model: plumb_bob\ndistortion: 0.1\n", "list of numbers"},
+  };
+  for (const auto& [text, message] : bad) {
+    SCOPED_TRACE(text);
+    test::write_text(tmp_ / "camera.yaml", pinhole + text);
+    EXPECT_FALSE(open_dataset(tmp_.path(), &error));
+    EXPECT_NE(error.find(message), std::string::npos) << error;
+    EXPECT_NE(error.find("camera.yaml:"), std::string::npos) << error;
+  }
+}
+
 }  // namespace
 }  // namespace dqo

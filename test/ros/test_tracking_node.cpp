@@ -34,6 +34,7 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <nav_msgs/Path.h>
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <std_msgs/String.h>
 #include <tf2/buffer_core.h>
 #include <tf2_msgs/TFMessage.h>
@@ -70,6 +71,7 @@ struct Recorder {
   std::set<double> tf_stamps;                               // stamps of map -> * edges
   dqo::ros_test::RosoutLog log{"tracking"};
   std::vector<std::string> states;  // every tracking_state, in order
+  std::vector<diagnostic_msgs::DiagnosticStatus> diagnostics;  // the tracking node's, in order
   std::string map_id;
   std::vector<nav_msgs::Path> paths;
 
@@ -89,6 +91,11 @@ struct Recorder {
   void on_state(const std_msgs::String::ConstPtr& s) {
     std::lock_guard<std::mutex> lock(mutex);
     states.push_back(s->data);
+  }
+  void on_diagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& a) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& status : a->status)
+      if (status.name == "dqo_map: tracking") diagnostics.push_back(status);
   }
   void on_map_id(const std_msgs::String::ConstPtr& s) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -155,6 +162,7 @@ class TrackingNodeTest : public ::testing::Test {
     tf_static_sub_ = nh.subscribe("/tf_static", 100, &Recorder::on_tf, &rec_);
     log_sub_ = nh.subscribe("/rosout", 1000, &Recorder::on_log, &rec_);
     state_sub_ = nh.subscribe("/dqo_map/tracking_state", 100, &Recorder::on_state, &rec_);
+    diag_sub_ = nh.subscribe("/diagnostics", 100, &Recorder::on_diagnostics, &rec_);
     map_id_sub_ = nh.subscribe("/dqo_map/map_id", 10, &Recorder::on_map_id, &rec_);
     clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10, true);
     tf_static_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf_static", 10, true);
@@ -211,7 +219,7 @@ class TrackingNodeTest : public ::testing::Test {
   std::map<long, dqo::SE3> gt_;  // ground truth by bag stamp in microseconds
   Recorder rec_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
-  ros::Subscriber keyframe_sub_, tf_sub_, tf_static_sub_, log_sub_, state_sub_, map_id_sub_;
+  ros::Subscriber keyframe_sub_, tf_sub_, tf_static_sub_, log_sub_, state_sub_, map_id_sub_, diag_sub_;
   ros::Publisher clock_pub_, tf_static_pub_, rgb_pub_, depth_pub_, info_pub_;
 };
 
@@ -239,6 +247,15 @@ TEST_F(TrackingNodeTest, KeyframesTfAndBadInput) {
     keyframes = rec_.keyframes;
     ASSERT_FALSE(rec_.states.empty()) << "no tracking_state";
     EXPECT_EQ(rec_.states.back(), "ok");  // tracking::to_string(TrackingState::kOk)
+    // The state and its evidence on /diagnostics: the first status is sent at once.
+    ASSERT_FALSE(rec_.diagnostics.empty()) << "no tracking status on /diagnostics";
+    std::map<std::string, std::string> values;
+    for (const auto& kv : rec_.diagnostics.back().values) values[kv.key] = kv.value;
+    EXPECT_EQ(values["state"], "ok");
+    EXPECT_EQ(rec_.diagnostics.back().level, diagnostic_msgs::DiagnosticStatus::OK);
+    EXPECT_GE(std::stoi(values["frames_ok"]), 1);
+    EXPECT_EQ(values.count("reasons"), 1u);
+    EXPECT_EQ(values.count("features_dense_disagreement_m"), 1u);
   }
   ASSERT_GE(keyframes.size(), 5u);
 

@@ -46,6 +46,7 @@ TEST(ParamsYaml, CoversEveryField) {
   EXPECT_EQ(initialisers<t::KeyframeParams>(), keys["tracker.keyframes"]) << "KeyframeParams" << fix;
   EXPECT_EQ(initialisers<t::LocalBaParams>(), keys["tracker.local_ba"]) << "LocalBaParams" << fix;
   EXPECT_EQ(initialisers<t::RelocParams>(), keys["tracker.reloc"]) << "RelocParams" << fix;
+  EXPECT_EQ(initialisers<t::QualityParams>(), keys["tracker.quality"]) << "QualityParams" << fix;
   // TrackerParams: its scalar keys plus one per stage section.
   size_t stages = 0;
   for (const auto& [path, n] : keys) stages += path.rfind("tracker.", 0) == 0 ? 1 : 0;

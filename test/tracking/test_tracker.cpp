@@ -43,6 +43,13 @@ class TinyScene : public ::testing::Test {
   static const dqo::Frame& frame(int i) { return (*frames_)[i]; }
   static int num_frames() { return static_cast<int>(frames_->size()); }
   static const dqo::PinholeCamera& camera() { return scene_->camera; }
+  // At 160x120 (a sixteenth of a 640x480 frame's pixels) a well tracked frame has tens of
+  // inliers, not hundreds: the ok threshold scaled down with the image.
+  static TrackerParams tiny_params() {
+    TrackerParams params;
+    params.quality.ok_inliers = 15;
+    return params;
+  }
 
   static TrackResult track(Tracker* tracker, const dqo::Frame& f, double timestamp) {
     RgbdInput input;
@@ -92,7 +99,7 @@ double track_all(Tracker* tracker, int first, int count,
 }
 
 TEST_F(TinyScene, TrackedWithAteBelowOneCentimetre) {
-  Tracker tracker(camera(), TrackerParams{});
+  Tracker tracker(camera(), tiny_params());
   double max_angle = 0.0;
   const double ate = track_all(
       &tracker, 0, num_frames(), [](Tracker* t, int i) { return track(t, i); },
@@ -102,7 +109,7 @@ TEST_F(TinyScene, TrackedWithAteBelowOneCentimetre) {
 }
 
 TEST_F(TinyScene, KeyframesAndMapPointsGrowOverTheOrbit) {
-  Tracker tracker(camera(), TrackerParams{});
+  Tracker tracker(camera(), tiny_params());
   int new_keyframes = 0;
   for (int i = 0; i < num_frames(); ++i) new_keyframes += track(&tracker, i).new_keyframe;
   EXPECT_GE(tracker.num_keyframes(), 4u);
@@ -111,7 +118,7 @@ TEST_F(TinyScene, KeyframesAndMapPointsGrowOverTheOrbit) {
 }
 
 TEST_F(TinyScene, BundleAdjustmentCorrectsRegisteredFrames) {
-  Tracker tracker(camera(), TrackerParams{});
+  Tracker tracker(camera(), tiny_params());
   std::vector<uint64_t> registered;
   for (int i = 0; i < num_frames(); ++i) {
     if (track(&tracker, i).state != TrackingState::kOk) continue;
@@ -131,7 +138,7 @@ TEST_F(TinyScene, BundleAdjustmentCorrectsRegisteredFrames) {
 }
 
 TEST_F(TinyScene, ResetStartsANewMap) {
-  Tracker tracker(camera(), TrackerParams{});
+  Tracker tracker(camera(), tiny_params());
   for (int i = 0; i < 8; ++i) {
     track(&tracker, i);
     tracker.register_frame(i);
@@ -156,7 +163,7 @@ TEST_F(TinyScene, ResetStartsANewMap) {
 }
 
 TEST_F(TinyScene, RecoversAfterAJumpToAViewSeenBefore) {
-  Tracker tracker(camera(), TrackerParams{});
+  Tracker tracker(camera(), tiny_params());
   for (int i = 0; i < 12; ++i) ASSERT_EQ(track(&tracker, i).state, TrackingState::kOk);
   // Back to the view of frame 3, 144° of orbit away; the motion model still says "keep turning".
   const int target = 3;
@@ -172,16 +179,24 @@ TEST_F(TinyScene, RecoversAfterAJumpToAViewSeenBefore) {
 }
 
 TEST_F(TinyScene, RelocalisesAfterBeingLost) {
-  TrackerParams params;
+  const TrackerParams params = tiny_params();
   Tracker tracker(camera(), params);
   for (int i = 0; i < 10; ++i) ASSERT_EQ(track(&tracker, i).state, TrackingState::kOk);
-  // Covered lens: no texture, no depth.
+  // Covered lens: no texture, no depth. Every such frame is lost (no evidence), from the first
+  // one on, and none becomes a keyframe.
   dqo::Frame blank = frame(0);
   std::fill(blank.rgb.data.begin(), blank.rgb.data.end(), 128);
   std::fill(blank.depth.data.begin(), blank.depth.data.end(), 0.0f);
   double t = 1.0;
   TrackResult r;
-  for (int i = 0; i < params.frames_to_lost; ++i) r = track(&tracker, blank, t += 0.03);
+  const size_t keyframes = tracker.num_keyframes();
+  for (int i = 0; i < params.frames_to_lost; ++i) {
+    r = track(&tracker, blank, t += 0.03);
+    EXPECT_EQ(r.state, TrackingState::kLost) << "blank frame " << i;
+    EXPECT_FALSE(r.new_keyframe);
+    EXPECT_NE(r.quality.reasons & dqo::tracking::quality_reason::kNoEvidence, 0u);
+  }
+  EXPECT_EQ(tracker.num_keyframes(), keyframes);
   EXPECT_EQ(r.state, TrackingState::kLost);
   EXPECT_EQ(tracker.state(), TrackingState::kLost);
   r = track(&tracker, blank, t += 0.03);
@@ -198,7 +213,7 @@ TEST_F(TinyScene, RelocalisesAfterBeingLost) {
 }
 
 TEST_F(TinyScene, BadInputIsSkipped) {
-  Tracker tracker(camera(), TrackerParams{});
+  Tracker tracker(camera(), tiny_params());
   RgbdInput none;
   EXPECT_EQ(tracker.track(none).state, TrackingState::kNotInitialised);
   dqo::ImageRgb8 small(10, 10, 3);
@@ -270,5 +285,42 @@ TEST_F(TabletopStart, DenseAloneTracks) {
 }
 
 TEST_F(TabletopStart, FusedTracks) { EXPECT_LT(track_all(TrackerParams{}), 0.005); }
+
+// A covered lens for 8 frames (a quarter second, the camera moving on), then the view again:
+// every covered frame lost and no keyframe made, relocalised within a few frames, and no frame
+// reported ok with a wrong pose.
+TEST_F(TabletopStart, RelocalisesAfterACoveredLens) {
+  Tracker tracker(scene_->camera, TrackerParams{});
+  const dqo::SE3 T_0 = (*frames_)[0].T_wc;
+  dqo::Frame covered = (*frames_)[0];
+  std::fill(covered.rgb.data.begin(), covered.rgb.data.end(), 0);
+  std::fill(covered.depth.data.begin(), covered.depth.data.end(), 0.0f);
+  int first_ok_after = -1;
+  bool relocalised = false;
+  for (int i = 0; i < kFrames; ++i) {
+    const dqo::Frame& f = (*frames_)[i];
+    const bool cover = i >= 10 && i < 18;
+    RgbdInput input;
+    input.timestamp = f.timestamp;
+    input.rgb = cover ? &covered.rgb : &f.rgb;
+    input.depth = cover ? &covered.depth : &f.depth;
+    const size_t keyframes = tracker.num_keyframes();
+    const TrackResult r = tracker.track(input);
+    if (cover) {
+      EXPECT_EQ(r.state, TrackingState::kLost) << "covered frame " << i;
+      EXPECT_EQ(tracker.num_keyframes(), keyframes) << "covered frame " << i;
+      continue;
+    }
+    relocalised = relocalised || r.relocalised;
+    if (r.state == TrackingState::kOk) {
+      const dqo::SE3 truth = T_0.inverse() * f.T_wc;
+      EXPECT_LT((r.T_wc.translation() - truth.translation()).norm(), 0.02) << "frame " << i;
+      if (i >= 18 && first_ok_after < 0) first_ok_after = i;
+    }
+  }
+  EXPECT_TRUE(relocalised);
+  ASSERT_GE(first_ok_after, 18) << "never ok again after the cover";
+  EXPECT_LE(first_ok_after, 22);
+}
 
 }  // namespace

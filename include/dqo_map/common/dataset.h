@@ -56,6 +56,12 @@ struct GtObject {
 
 struct DatasetInfo {
   PinholeCamera camera;
+  // Lens distortion of the stored images (camera.yaml's distortion_model and distortion, OpenCV's
+  // coefficient order: plumb_bob k1 k2 p1 p2 k3, rational_polynomial k1 k2 p1 p2 k3 k4 k5 k6).
+  // Empty: the images are pinhole already. Consumers that assume a pinhole camera rectify first
+  // (tracking/rectified_frame_source.h), as tracking_node does with a CameraInfo's D.
+  std::string distortion_model;
+  std::vector<double> distortion;
   double depth_scale = 1000.0;            // stored uint16 value per metre
   std::map<int, std::string> class_names; // class ID -> name
   std::vector<GtObject> objects;          // empty when the dataset has no object ground truth

@@ -12,7 +12,11 @@
 // A frame's timestamp is its colour image's. Its pose comes from groundtruth.txt (TUM trajectory
 // format) interpolated at that timestamp (see PoseLookupParams); where none can be had, or without
 // groundtruth.txt, has_pose is false. Depth scale 5000 unless camera.yaml gives depth_scale;
-// camera.yaml has the keys of the own format (depth_scale optional) and is required.
+// camera.yaml has the keys of the own format (depth_scale optional, distortion optional) and is
+// required. The own format's side files are read when present beside rgb.txt: classes.txt,
+// detections.txt (its frame column a frame index, or a timestamp matched to the nearest frame
+// within max_time_difference), objects_gt.txt (+ meshes_gt/) and instance/ (a PNG named as the
+// colour image, e.g. instance/1305031102.175304.png, or by frame index, instance/000042.png).
 //
 // Replica (NICE-SLAM): results/frameNNNNNN.jpg (colour), results/depthNNNNNN.png (uint16, scale
 // 6553.5 unless cam_params.json says otherwise), traj.txt with one camera-to-world 4x4 matrix per
@@ -44,7 +48,12 @@ class DatasetReader : public FrameSource {
 };
 
 struct TumReaderParams {
-  double max_time_difference = 0.02;  // seconds between paired colour and depth images
+  double max_time_difference = 0.02;  // seconds between paired colour and depth images, and
+                                      // between a detection's timestamp and its frame's
+  // Read in place of the folder's camera.yaml when not empty (a calibration kept apart from the
+  // data, e.g. config/cameras/tum_fr1.yaml with the lens distortion).
+  std::string camera_file;
+  bool load_meshes = true;  // objects_gt.txt's meshes_gt/<id>.ply (open_dataset: its own flag)
   PoseLookupParams pose;              // ground truth at the colour timestamp
   double default_depth_scale = 5000.0;
 };
@@ -54,7 +63,7 @@ struct ReplicaReaderParams {
 };
 
 struct DatasetReaderParams {
-  bool load_meshes = true;  // own format: read meshes_gt/<id>.ply into info().objects[].mesh
+  bool load_meshes = true;  // own format and TUM: read meshes_gt/<id>.ply into info().objects[].mesh
   TumReaderParams tum;
   ReplicaReaderParams replica;
 };

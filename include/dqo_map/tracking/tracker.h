@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "dqo_map/common/image.h"
@@ -21,10 +22,46 @@ namespace dqo::tracking {
 
 enum class TrackingState {
   kNotInitialised,  // no frame with enough valid depth yet
-  kOk,
-  kLost,            // relocalisation is tried on every frame until it succeeds
+  kOk,              // the evidence supports the pose (TrackQuality says how well)
+  kDegraded,        // a pose, supported by one source only or with weak evidence (reasons say which)
+  // This frame has no pose the evidence supports (reported T_wc is not valid). After
+  // frames_to_lost such frames in a row, relocalisation is tried on every frame until it succeeds.
+  kLost,
 };
 const char* to_string(TrackingState state);
+// kOk or kDegraded: T_wc is valid.
+inline bool has_pose(TrackingState state) {
+  return state == TrackingState::kOk || state == TrackingState::kDegraded;
+}
+
+// Why a frame is degraded or lost: bit flags of TrackQuality::reasons.
+namespace quality_reason {
+constexpr uint32_t kFewInliers = 1u << 0;    // feature inliers below QualityParams::ok_inliers
+constexpr uint32_t kPoorSpread = 1u << 1;    // inliers cover too little of the image
+constexpr uint32_t kDenseFailed = 1u << 2;   // dense alignment did not converge (or no depth)
+constexpr uint32_t kDenseResidual = 1u << 3; // it converged to a poor fit (residual, inliers)
+constexpr uint32_t kDisagreement = 1u << 4;  // features and dense alignment give different poses
+constexpr uint32_t kNoEvidence = 1u << 5;    // neither held: the motion model's guess only
+constexpr uint32_t kRelocalising = 1u << 6;  // lost, relocalisation failed on this frame
+constexpr uint32_t kNoDepth = 1u << 7;       // few inliers with depth: a monocular pose only
+}  // namespace quality_reason
+// "few_inliers+poor_spread"; "" for none.
+std::string reasons_to_string(uint32_t reasons);
+
+// The evidence behind a frame's state (what diagnostics show).
+struct TrackQuality {
+  int inliers = 0;               // feature inliers (map points) of the reported pose
+  int depth_inliers = 0;         // ... of them with a depth measurement
+  double spread = 0.0;           // fraction of the image's 4x4 cells holding one of them
+  bool dense_tried = false;      // dense alignment ran on this frame
+  bool dense_ok = false;         // ... and converged
+  double dense_rms = 0.0;        // its whitened RMS (sigma units)
+  double dense_inlier_ratio = 0.0;
+  // Between the dense alignment's pose and the feature pose (when both exist).
+  double disagreement_m = 0.0;
+  double disagreement_deg = 0.0;
+  uint32_t reasons = 0;          // quality_reason flags
+};
 
 // One rectified RGB-D capture (pinhole camera, depth registered to colour).
 struct RgbdInput {
@@ -35,14 +72,16 @@ struct RgbdInput {
 
 struct TrackResult {
   TrackingState state = TrackingState::kNotInitialised;
-  SE3 T_wc;                  // valid when state == kOk
+  SE3 T_wc;                  // valid when has_pose(state)
   bool new_keyframe = false; // the tracker's own keyframe was created from this frame
   int features = 0;          // ORB keypoints extracted
   int inliers = 0;           // map point matches kept by the pose optimisation
   bool relocalised = false;  // this frame ended a lost spell
-  // Neither features nor dense alignment held on this frame (fewer than frames_to_lost in a
-  // row): T_wc is the constant-velocity prediction, state still kOk.
+  // Neither features nor dense alignment held on this frame: the state is kLost (reason
+  // kNoEvidence); the tracker carries the constant-velocity prediction to the next frame, and
+  // starts relocalising after frames_to_lost such frames in a row.
   bool predicted = false;
+  TrackQuality quality;
   double milliseconds = 0.0; // time spent in track()
 };
 

@@ -84,12 +84,41 @@ struct LocalBaParams {
   int fixed_keyframes = 10;         // keyframes outside the window that see its points, held fixed
   // Run the adjustment inside track() instead of on the worker (deterministic, for tests).
   bool synchronous = false;
+  // With `deterministic` (below): a result enters the map at the start of the frame this many
+  // frames after the keyframe that asked for it, the tracker waiting for it there if it is late.
+  // Larger hides more of the adjustment behind tracking; smaller applies corrections sooner.
+  int apply_after_frames = 3;
+  // The offline tools (dqo_track, dqo_map_offline, bench_tracking) set it whatever their config
+  // says, so that their output is bit-identical on any machine load: a result
+  // enters the map at the fixed point above, and "mapping is busy" (the keyframe policy) means "a
+  // result is outstanding", not "the thread is still running". The live node leaves it false:
+  // results enter whenever they land, the tracker never waits.
+  bool deterministic = false;
 };
 
 struct RelocParams {
   int candidate_keyframes = 20;   // matched by descriptor against this many recent/covisible
   int min_inliers = 30;
   int max_pnp = 5;                // candidates (the best matched first) given to PnP RANSAC
+};
+
+// When a tracked frame is ok, degraded or lost (TrackQuality). Features hold when they have
+// ok_inliers inliers spread over min_spread of the image; dense alignment holds when it converged
+// with a whitened RMS of at most dense_max_rms over at least dense_min_inlier_ratio of the points.
+// ok: the features hold and dense alignment does not contradict them (or dense alone holds when
+// features are off). degraded: dense holds without the features' support, or the features have
+// at least min_inliers_ok inliers, or the two disagree and the features hold. lost: otherwise
+// (also when they disagree and the features do not hold).
+struct QualityParams {
+  int ok_inliers = 50;
+  // Of them with depth, for ok: without depth the features give a monocular pose, whose
+  // translation the RGB-D map does not check (depth dropped: degraded, not ok).
+  int ok_depth_inliers = 25;
+  double min_spread = 0.25;          // of the 4x4 cells of the image
+  double dense_max_rms = 1.5;        // Kinect v1 (TUM fr1) frames fit at 0.9-1.5
+  double dense_min_inlier_ratio = 0.4;
+  double max_disagreement_m = 0.03;  // between the dense and the feature pose of one frame
+  double max_disagreement_deg = 2.0;
 };
 
 struct TrackerParams {
@@ -100,10 +129,11 @@ struct TrackerParams {
   LocalBaParams local_ba;
   RelocParams reloc;
   SearchParams search;
+  QualityParams quality;
   bool use_dense = true;        // fuse dense depth alignment with the features
   bool use_features = true;
   int min_inliers_ok = 15;      // below: this frame's tracking failed
-  int frames_to_lost = 3;       // consecutive failures before the state becomes kLost
+  int frames_to_lost = 3;       // consecutive lost frames before relocalisation takes over
 };
 
 }  // namespace dqo::tracking
