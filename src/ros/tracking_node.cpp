@@ -253,6 +253,10 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
       [this](const CameraInfoConstPtr&) { last_info_ = ros::WallTime::now(); }));
   SyncPolicy policy(static_cast<uint32_t>(p_.queue_size));
   if (p_.sync_slop > 0.0) policy.setMaxIntervalDuration(ros::Duration(p_.sync_slop));
+  // A looping bag (sim time jumping back) clears the synchroniser's queues: otherwise the frames
+  // it holds from before the jump stay ahead of the new ones, whose stamps are older, and the
+  // policy (which assumes stamps only grow) drops or holds new frames until its queues overflow.
+  policy.setReset(true);
   sync_ = std::make_unique<message_filters::Synchronizer<SyncPolicy>>(std::as_const(policy), rgb_sub_, depth_sub_, info_sub_);
   sync_->registerCallback(&TrackingNode::on_frame, this);
   input_timer_ = nh_.createWallTimer(ros::WallDuration(1.0), &TrackingNode::check_inputs, this);
