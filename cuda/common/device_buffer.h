@@ -25,6 +25,16 @@ inline void check(cudaError_t err, const char* what) {
   throw std::runtime_error(message);
 }
 
+// Throws std::runtime_error when no CUDA device can be used (the backends' factories).
+inline void require_device() {
+  int count = 0;
+  const cudaError_t err = cudaGetDeviceCount(&count);
+  if (err != cudaSuccess || count == 0) {
+    cudaGetLastError();
+    throw std::runtime_error(std::string("no CUDA device: ") + (err != cudaSuccess ? cudaGetErrorString(err) : "none found"));
+  }
+}
+
 // A device array that only grows (contents are not kept across a growth).
 template <typename T>
 class DeviceBuffer {

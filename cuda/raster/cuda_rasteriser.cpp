@@ -111,12 +111,7 @@ class CudaRasteriser final : public gs::Rasteriser {
     go.depth = upload_or_null(&v_depth_, grad_out.depth, pixels);
     go.alpha = upload_or_null(&v_alpha_, grad_out.alpha, pixels);
     go.ins = upload_or_null(&v_ins_, grad_out.ins, pixels);
-    detail::DeviceAttributeGradients d;
-    d.position = g_position_.ensure(3 * n, "gradients");
-    d.log_scale = g_log_scale_.ensure(3 * n, "gradients");
-    d.rotation = g_rotation_.ensure(4 * n, "gradients");
-    d.opacity = g_opacity_.ensure(n, "gradients");
-    d.colour = g_colour_.ensure(3 * n, "gradients");
+    const detail::DeviceAttributeGradients d = gradients_.get(n);
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
     pipe_.backward(gaussians_, cam, go, d);
     if (grad_map->position.size() != 3 * n) grad_map->resize_for(map);
@@ -145,7 +140,7 @@ class CudaRasteriser final : public gs::Rasteriser {
   detail::DeviceGaussians gaussians_;  // the map as uploaded by the latest forward()
   size_t uploaded_ = 0;                // Gaussians on the device (0: none, or an upload failed)
   DeviceBuffer<float> v_rgb_, v_depth_, v_alpha_, v_ins_;
-  DeviceBuffer<float> g_position_, g_log_scale_, g_rotation_, g_opacity_, g_colour_;
+  detail::GradientBuffers gradients_;
 };
 
 }  // namespace
@@ -157,12 +152,7 @@ std::optional<ForwardTimings> last_forward_timings(const gs::Rasteriser& rasteri
 }
 
 std::unique_ptr<gs::Rasteriser> make_cuda_rasteriser() {
-  int count = 0;
-  const cudaError_t err = cudaGetDeviceCount(&count);
-  if (err != cudaSuccess || count == 0) {
-    cudaGetLastError();
-    throw std::runtime_error(std::string("no CUDA device: ") + (err != cudaSuccess ? cudaGetErrorString(err) : "none found"));
-  }
+  require_device();
   return std::make_unique<CudaRasteriser>();
 }
 

@@ -29,6 +29,13 @@ float RasterPipeline::ms_between(int a, int b) const {
   return ms;
 }
 
+size_t RasterPipeline::bytes() const {
+  return splats_.bytes() + rects_.bytes() + tile_count_.bytes() + offsets_.bytes() + values_.bytes() +
+         sorted_ids_.bytes() + keys_.bytes() + sorted_keys_.bytes() + ranges_.bytes() + rgb_.bytes() + depth_.bytes() +
+         alpha_.bytes() + ins_.bytes() + dominant_.bytes() + t_final_.bytes() + depth_raw_.bytes() +
+         n_contrib_.bytes() + surface_.bytes() + grad2d_.bytes() + scan_temp_bytes_ + sort_temp_bytes_;
+}
+
 void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<float>& cam,
                              const gs::RenderSettings& settings, bool keep_state) {
   const size_t n = g.count;

@@ -25,6 +25,18 @@ struct DeviceAttributeGradients {
   float* colour = nullptr;     // [N*3]
 };
 
+// The device arrays behind a DeviceAttributeGradients, grown to n Gaussians by get().
+struct GradientBuffers {
+  DeviceBuffer<float> position, log_scale, rotation, opacity, colour;
+  DeviceAttributeGradients get(size_t n) {
+    return {position.ensure(3 * n, "gradients"), log_scale.ensure(3 * n, "gradients"),
+            rotation.ensure(4 * n, "gradients"), opacity.ensure(n, "gradients"), colour.ensure(3 * n, "gradients")};
+  }
+  size_t bytes() const {
+    return position.bytes() + log_scale.bytes() + rotation.bytes() + opacity.bytes() + colour.bytes();
+  }
+};
+
 class RasterPipeline {
  public:
   RasterPipeline();
@@ -55,6 +67,8 @@ class RasterPipeline {
   // download; 1-4 and 6-7 are the pipeline's).
   void mark(int k) { check(cudaEventRecord(events_[k], stream_), "timing"); }
   float ms_between(int a, int b) const;
+  // Device bytes its buffers hold (per Gaussian, per pair, per pixel, the sort's scratch).
+  size_t bytes() const;
 
  private:
   cudaStream_t stream_ = nullptr;

@@ -69,12 +69,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     g.opacity = upload(&opacity_, map->opacities(), "opacities", stream);
     g.object_id = upload(&object_id_, map->object_ids_per_gaussian(), "object IDs", stream);
     g.type = upload(&type_, map->types(), "types", stream);
-    detail::DeviceAttributeGradients grad;
-    grad.position = g_position_.ensure(3 * n, "gradients");
-    grad.log_scale = g_log_scale_.ensure(3 * n, "gradients");
-    grad.rotation = g_rotation_.ensure(4 * n, "gradients");
-    grad.opacity = g_opacity_.ensure(n, "gradients");
-    grad.colour = g_colour_.ensure(3 * n, "gradients");
+    const detail::DeviceAttributeGradients grad = gradients_.get(n);
     double* sums = sums_.ensure(3 * steps.size(), "loss sums");
     check(cudaMemsetAsync(sums, 0, 3 * steps.size() * sizeof(double), stream), "loss sums");
 
@@ -158,9 +153,10 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   size_t device_bytes() const override {
     size_t total = 0;
     for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
-    for (const auto* b : {&position_, &log_scale_, &rotation_, &colour_, &confidence_, &opacity_, &g_position_,
-                          &g_log_scale_, &g_rotation_, &g_opacity_, &g_colour_, &v_rgb_, &v_depth_, &v_ins_})
+    for (const auto* b : {&position_, &log_scale_, &rotation_, &colour_, &confidence_, &opacity_, &v_rgb_, &v_depth_,
+                          &v_ins_})
       total += b->bytes();
+    total += gradients_.bytes() + pipe_.bytes();
     for (int a = 0; a < 4; ++a) total += m_[a].bytes() + v_[a].bytes();
     return total + stable_.bytes() + type_.bytes() + object_id_.bytes() + steps_.bytes() + sums_.bytes();
   }
@@ -204,7 +200,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   DeviceBuffer<uint8_t> stable_, type_;
   DeviceBuffer<uint32_t> object_id_, steps_;
   DeviceBuffer<float> m_[4], v_[4];
-  DeviceBuffer<float> g_position_, g_log_scale_, g_rotation_, g_opacity_, g_colour_;
+  detail::GradientBuffers gradients_;
   DeviceBuffer<float> v_rgb_, v_depth_, v_ins_;
   DeviceBuffer<double> sums_;
 };
@@ -212,12 +208,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
 }  // namespace
 
 std::unique_ptr<gs::TrainingEngine> make_cuda_training_engine() {
-  int count = 0;
-  const cudaError_t err = cudaGetDeviceCount(&count);
-  if (err != cudaSuccess || count == 0) {
-    cudaGetLastError();
-    throw std::runtime_error(std::string("no CUDA device: ") + (err != cudaSuccess ? cudaGetErrorString(err) : "none found"));
-  }
+  require_device();
   return std::make_unique<CudaTrainingEngine>();
 }
 

@@ -53,7 +53,8 @@ class TrainingEngine {
   // Throws OutOfDeviceMemory when the device is full (map and adam then are as before the batch).
   virtual std::vector<double> run(const std::vector<TrainingView>& views, const std::vector<TrainingStep>& steps,
                                   const TrainingLoss& loss, GaussianMap* map, GaussianAdam* adam) = 0;
-  // Device bytes held now (buffers, cached images), for diagnostics.
+  // Device bytes held now (the map, optimiser state, gradients, the rasteriser's buffers, cached
+  // images), for diagnostics.
   virtual size_t device_bytes() const = 0;
 };
 
