@@ -15,7 +15,8 @@
 //      a threshold (off by default: see Params);
 //   4. prune: unstable ones older than N keyframes (off with stabilisation), oversized ones, and
 //      ones that stayed in view yet contributed (almost) nothing for several keyframes.
-// The keyframe store holds the window only. Parallelism comes from the rasteriser. Not
+// The keyframe store holds the window only. Parallelism comes from the rasteriser (and the training
+// engine, where one is given: cuda/train/) and the review's per-Gaussian loop. Not
 // thread-safe: one caller at a time (the mapping node's worker).
 
 #include <cstdint>
