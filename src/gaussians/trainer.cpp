@@ -149,8 +149,14 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
     }
   }
 
-  // 4. Prune.
-  prune(&report);
+  // 4. Prune (the budget's render can run out of device memory too).
+  with_memory_retry(
+      [&] {
+        KeyframeReport attempt = report;  // a pass that fails half-way must not count twice
+        prune(&attempt);
+        report = attempt;
+      },
+      &report);
   report.prune_ms = ms_since(t);
 
   report.num_gaussians = map_.size();
