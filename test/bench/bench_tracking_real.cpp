@@ -21,6 +21,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -266,6 +267,18 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
               "ok", "degr", "lost", "init", "ATE cm", "max cm", "wrong_ok", "wrong_dg",
               "reloc s", "after cm", "base aft", "med ms", "cpu ms");
   bool zero_wrong_ok = true;
+  // Each fault injected into `seq`: the faulty run, with the fault-free run's ATE over the same span.
+  auto run_faults = [&](const Sequence& seq, std::initializer_list<const char*> faults) {
+    for (const std::string fault : faults) {
+      if (!options.only.empty() && fault != options.only) continue;
+      Fault f;
+      const Sequence faulty = inject(seq, fault, &f);
+      Stats s = run(faulty, f, options.verbose);
+      s.base_after_cm = run(seq, f, false).ate_after_cm;
+      zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
+      print(s);
+    }
+  };
   const std::string tum_dir =
       std::filesystem::path(options.tum_dir.empty()
                                 ? (std::filesystem::canonical(source_dir) / "../shared/data/tum_fr1_xyz").string()
@@ -285,15 +298,7 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
       zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
       print(s);
     }
-    for (const std::string fault : {"covered", "no depth", "repeated"}) {
-      if (!options.only.empty() && fault != options.only) continue;
-      Fault f;
-      const Sequence faulty = inject(*tum, fault, &f);
-      Stats s = run(faulty, f, options.verbose);
-      s.base_after_cm = run(*tum, f, false).ate_after_cm;
-      zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
-      print(s);
-    }
+    run_faults(*tum, {"covered", "no depth", "repeated"});
   }
   const auto tabletop =
       load_scene(source_dir + "/config/scenes/tabletop.yaml", options.synthetic_frames, &error);
@@ -302,15 +307,7 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
     return 1;
   }
   print(run(*tabletop, Fault{}, options.verbose));
-  for (const std::string fault : {"covered", "no depth", "jump 30deg", "repeated"}) {
-    if (!options.only.empty() && fault != options.only) continue;
-    Fault f;
-    const Sequence faulty = inject(*tabletop, fault, &f);
-    Stats s = run(faulty, f, options.verbose);
-    s.base_after_cm = run(*tabletop, f, false).ate_after_cm;
-    zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
-    print(s);
-  }
+  run_faults(*tabletop, {"covered", "no depth", "jump 30deg", "repeated"});
   std::printf("\nwrong poses reported ok: %s\n", zero_wrong_ok ? "none (target met)" : "SOME (target missed)");
   return zero_wrong_ok ? 0 : 1;
 }
