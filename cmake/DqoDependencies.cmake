@@ -21,6 +21,13 @@ set(DQO_HAVE_OPENCV ${OpenCV_FOUND})
 if(NOT OpenCV_FOUND)
   message(STATUS "dqo_map: OpenCV not found: io/ and tracking/ are left out")
 endif()
+# The YOLO detector needs OpenCV's DNN module (Debian: libopencv-dnn-dev, part of libopencv-dev).
+set(DQO_HAVE_OPENCV_DNN OFF)
+if(OpenCV_FOUND AND TARGET opencv_dnn)
+  set(DQO_HAVE_OPENCV_DNN ON)
+elseif(OpenCV_FOUND)
+  message(STATUS "dqo_map: OpenCV has no dnn module: detector/ is left out")
+endif()
 
 find_package(Ceres QUIET)
 set(DQO_HAVE_CERES ${Ceres_FOUND})
