@@ -5,7 +5,7 @@
 # with a message (the core still builds), never a failed configure.
 set(DQO_ROS_MSG_COMPONENTS message_generation std_msgs geometry_msgs sensor_msgs)
 set(DQO_ROS_NODE_COMPONENTS roscpp rosbag tf2_msgs tf2_ros message_filters nav_msgs visualization_msgs rostest
-                             nodelet diagnostic_msgs)
+                             nodelet diagnostic_msgs roslib)
 
 set(_dqo_missing "")
 foreach(_c ${DQO_ROS_MSG_COMPONENTS} ${DQO_ROS_NODE_COMPONENTS})

@@ -233,6 +233,12 @@ bool from_camera_info_msg(const sensor_msgs::CameraInfo& info, PinholeCamera* ca
   return true;
 }
 
+sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header) {
+  sensor_msgs::Image msg = image_msg(image, sensor_msgs::image_encodings::MONO16, 2, header);
+  if (!image.data.empty()) std::memcpy(msg.data.data(), image.data.data(), msg.data.size());  // little-endian host
+  return msg;
+}
+
 InstanceImage to_instance_image(const LabelImage& labels) {
   InstanceImage out(labels.width, labels.height, 1, 0);
   for (size_t i = 0; i < labels.data.size(); ++i) out.data[i] = static_cast<uint16_t>(std::min<uint32_t>(labels.data[i], 0xffff));

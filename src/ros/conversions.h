@@ -55,6 +55,8 @@ sensor_msgs::Image to_depth_m_msg(const DepthImage& depth, const std_msgs::Heade
 // The pinhole camera of a rectified CameraInfo (K and the size); false and *error when K is not
 // a usable pinhole (non-positive or non-finite focal lengths, no size).
 bool from_camera_info_msg(const sensor_msgs::CameraInfo& info, PinholeCamera* camera, std::string* error);
+// An instance image (detection index + 1, or object IDs) as mono16.
+sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header);
 // Label values as a uint16 instance image (values beyond 65535 saturate).
 InstanceImage to_instance_image(const LabelImage& labels);
 

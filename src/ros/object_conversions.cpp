@@ -100,12 +100,6 @@ bool from_label_msg(const sensor_msgs::Image& msg, LabelImage* labels, std::stri
   return true;
 }
 
-sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header) {
-  sensor_msgs::Image msg = image_msg(image, sensor_msgs::image_encodings::MONO16, 2, header);
-  if (!image.data.empty()) std::memcpy(msg.data.data(), image.data.data(), msg.data.size());  // little-endian host
-  return msg;
-}
-
 bool to_object_keyframe(const dqo_map::KeyFrame& kf, const dqo_map::DetectionArray& detections,
                         const tracking::Undistorter* undistorter, objects::ObjectKeyFrame* out,
                         DepthImage* depth, InstanceImage* instance, std::vector<std::string>* warnings,

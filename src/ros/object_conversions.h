@@ -37,7 +37,6 @@ std::vector<Detection2d> from_detection_array_msg(const dqo_map::DetectionArray&
 // value, rgb8 / bgr8 the colour packed as pack_rgb(r, g, b). False and *error (naming the
 // encoding and those accepted) otherwise, or when the size fields disagree with the data.
 bool from_label_msg(const sensor_msgs::Image& msg, LabelImage* labels, std::string* error);
-sensor_msgs::Image to_mono16_msg(const InstanceImage& image, const std_msgs::Header& header);
 
 // The mapper's input from a KeyFrame and its DetectionArray: the rectified pinhole camera from the
 // keyframe's camera_info, T_wc from its pose, the depth as metres in *depth (the returned view
