@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 #include <utility>
 
 #include "dqo_map/common/mask_detections.h"
@@ -104,13 +105,17 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
                                                         DetectionSource detections,
                                                         LabelSource labels,
                                                         const DatasetInfo& info,
-                                                        OfflineStages* stages) {
+                                                        OfflineStages* stages,
+                                                        FrameDetector detector) {
+  if (detections == DetectionSource::kDetector && !detector) {
+    throw std::invalid_argument("add_object_stage: DetectionSource::kDetector needs a detector");
+  }
   auto mapper = std::make_shared<objects::ObjectMapper>(params);
   // Mask labels are ground-truth object IDs: their classes come from the ground truth.
   MaskDetectionParams mask_params;
   mask_params.default_class = {0, "object"};
   for (const GtObject& o : info.objects) mask_params.classes[o.id] = {o.class_id, o.class_name};
-  stages->objects = [mapper, detections, labels, mask_params](const mapping::MappingKeyframe& kf,
+  stages->objects = [mapper, detections, labels, mask_params, detector](const mapping::MappingKeyframe& kf,
                                                    const Frame& frame) {
     const auto t0 = std::chrono::steady_clock::now();
     objects::ObjectKeyFrame okf;
@@ -121,11 +126,15 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
     okf.depth.data = kf.depth.data.data();
     okf.depth.width = kf.depth.width;
     okf.depth.height = kf.depth.height;
-    InstanceImage detector_instance;  // k+1 = input detection k (mask detections only)
+    InstanceImage detector_instance;  // k+1 = input detection k (mask detections, segmenting detectors)
     if (detections == DetectionSource::kMasks) {
       MaskDetections md = detections_from_mask(mask_labels(frame.instance), mask_params);
       okf.detections = std::move(md.detections);
       detector_instance = std::move(md.instance);
+    } else if (detections == DetectionSource::kDetector) {
+      FrameDetections d = detector(frame);
+      okf.detections = std::move(d.detections);
+      detector_instance = std::move(d.instance);
     } else {
       okf.detections = frame.detections;
     }
@@ -136,7 +145,11 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
     out.keyframe_objects.detections = r.filtered;
     out.keyframe_objects.object_ids.assign(r.filtered_object_ids.begin(),
                                            r.filtered_object_ids.end());
-    if (labels == LabelSource::kMasks && !frame.instance.empty()) {
+    if (labels == LabelSource::kMasks && detections == DetectionSource::kDetector) {
+      // The detector's own masks (a box-only model has none: its pixels go unlabelled).
+      if (!detector_instance.empty())
+        out.keyframe_objects.instance = objects::renumber_instance(detector_instance, r.filtered_source);
+    } else if (labels == LabelSource::kMasks && !frame.instance.empty()) {
       out.keyframe_objects.instance =
           detector_instance.empty()
               ? instance_for_detections(frame.instance, r.filtered)

@@ -45,6 +45,9 @@
 #include "dqo_map/system/offline_stages.h"
 #include "dqo_map/tracking/rectified_frame_source.h"
 #endif
+#ifdef DQO_WITH_DETECTOR
+#include "detector_options.h"
+#endif
 
 namespace {
 
@@ -79,8 +82,17 @@ constexpr char kUsage[] =
     "  --background-mesh  also mesh the background (background_mesh.ply, 1 cm voxels)\n"
     "  --map FILE         no mapping: mesh and evaluate the map of a finished run (map.dqomap)\n";
 
+#ifdef DQO_WITH_DETECTOR
+// Detections from a YOLO model run on each keyframe instead of the input's (its masks label the
+// pixels where it segments).
+const std::string kModelUsage = std::string("  --model M.onnx     detect with a YOLO model (and the detector options below)\n") +
+                                dqo::tools::kDetectorUsage;
+#else
+const std::string kModelUsage;
+#endif
+
 int usage_error(const std::string& message) {
-  std::fprintf(stderr, "dqo_map_offline: %s\n%s", message.c_str(), kUsage);
+  std::fprintf(stderr, "dqo_map_offline: %s\n%s%s", message.c_str(), kUsage, kModelUsage.c_str());
   return 2;
 }
 
@@ -94,6 +106,9 @@ struct Options {
   double scale = 1.0;
   int frames = -1, every = 1, max_gaussians = -1, threads = 0;
   bool noise = true, meshes = true, background_mesh = false, quiet = false, preload = false;
+#ifdef DQO_WITH_DETECTOR
+  dqo::detector::YoloParams detector;  // detector.model empty: no detector
+#endif
 };
 
 bool parse_int(const char* v, int lo, int* out) {
@@ -134,8 +149,16 @@ int parse_options(int argc, char** argv, Options* out) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
+#ifdef DQO_WITH_DETECTOR
+    std::string detector_error;
+    if (dqo::tools::parse_detector_option(argc, argv, &i, &o.detector, &detector_error)) {
+      if (!detector_error.empty()) return usage_error(detector_error);
+      continue;
+    }
+#endif
     if (a == "-h" || a == "--help") {
       std::fputs(kUsage, stdout);
+      std::fputs(kModelUsage.c_str(), stdout);
       return 0;
     } else if (a == "--preload") {
       o.preload = true;
@@ -278,9 +301,28 @@ int main(int argc, char** argv) {
   const bool has_gt_poses = first->has_pose;
   const bool has_masks = !first->instance.empty();
   std::string poses = o.poses.empty() ? (has_gt_poses ? "gt" : "track") : o.poses;
-  std::string labels = o.labels.empty() ? (has_masks ? "masks" : "quadrics") : o.labels;
+#ifdef DQO_WITH_DETECTOR
+  // A YOLO model in place of the input's detections: checked before the long part.
+  std::shared_ptr<dqo::detector::YoloDetector> yolo;
+  if (!o.detector.model.empty()) {
+    if (o.detector.classes.empty()) o.detector.classes = dqo::tools::default_class_names();
+    yolo = dqo::detector::YoloDetector::create(o.detector, &error);
+    if (!yolo) return fail(error);
+    std::fprintf(stderr, "dqo_map_offline: detections from %s (%s)\n", o.detector.model.c_str(),
+                 yolo->layout().describe().c_str());
+  }
+  const bool detector = yolo != nullptr;
+  const bool masks_available = detector ? yolo->segments() : has_masks;
+#else
+  const bool detector = false;
+  const bool masks_available = has_masks;
+#endif
+  std::string labels = o.labels.empty() ? (masks_available ? "masks" : "quadrics") : o.labels;
   if (poses == "gt" && !has_gt_poses) return fail(o.input + " has no ground-truth poses: use --poses track or FILE");
-  if (labels == "masks" && !has_masks) return fail(o.input + " has no instance masks: use --labels quadrics");
+  if (labels == "masks" && !masks_available) {
+    return fail(detector ? o.input + ": the model gives no masks (not a -seg model): use --labels quadrics"
+                         : o.input + " has no instance masks: use --labels quadrics");
+  }
 
   std::error_code ec;
   fs::create_directories(o.out, ec);
@@ -322,22 +364,34 @@ int main(int argc, char** argv) {
   }
   const bool has_detections_file = input_kind.rfind("scene", 0) == 0 ||
                                    fs::is_regular_file(fs::path(o.input) / "detections.txt");
-  if (labels != "none" && !has_detections_file && !has_masks) {
+  if (labels != "none" && !detector && !has_detections_file && !has_masks) {
     return fail(o.input + " has neither detections (detections.txt) nor instance masks: no objects "
                 "can be found (give it a detections.txt, e.g. from a detector, or map it without "
                 "objects with --labels none)");
   }
-  const auto detection_source = has_detections_file ? dqo::system::DetectionSource::kDataset
-                                                    : dqo::system::DetectionSource::kMasks;
+  const auto detection_source = detector              ? dqo::system::DetectionSource::kDetector
+                                : has_detections_file ? dqo::system::DetectionSource::kDataset
+                                                      : dqo::system::DetectionSource::kMasks;
+  dqo::system::FrameDetector detect;
+#ifdef DQO_WITH_DETECTOR
+  if (yolo) {
+    // On each keyframe's colour image (the object stage's frame: undistorted and scaled like the rest).
+    detect = [yolo](const dqo::Frame& frame) {
+      dqo::detector::YoloDetections r = yolo->detect(frame.rgb);
+      return dqo::system::FrameDetections{std::move(r.detections), std::move(r.instance)};
+    };
+  }
+#endif
   std::shared_ptr<dqo::objects::ObjectMapper> object_mapper;
   std::string objects_from = "nowhere";
   if (labels != "none") {
     object_mapper = dqo::system::add_object_stage(
         object_params, detection_source,
         labels == "masks" ? dqo::system::LabelSource::kMasks : dqo::system::LabelSource::kQuadrics,
-        info, &stages);
-    objects_from =
-        detection_source == dqo::system::DetectionSource::kDataset ? "detections" : "instance masks";
+        info, &stages, detect);
+    objects_from = detection_source == dqo::system::DetectionSource::kDetector ? "the model's detections"
+                   : detection_source == dqo::system::DetectionSource::kDataset ? "detections"
+                                                                                 : "instance masks";
   }
 #else
   if (poses != "gt") return fail("this build maps with ground-truth poses only (--poses gt)");

@@ -105,6 +105,52 @@ TEST(OfflinePipeline, TinyObjectsPosesAndGaussians) {
   }
 }
 
+TEST(OfflinePipeline, ADetectorInPlaceOfTheDatasetsDetectionsGivesTheSameMap) {
+  // DetectionSource::kDetector (dqo_map_offline --model): a detector that gives exactly the dataset's
+  // detections and, as a segmenting model does, their masks (value k + 1 = detection k, from the
+  // ground-truth instance image through each detection's gt_id) must give the ground-truth run's
+  // objects and map; its masks label the pixels, never the dataset's own.
+  const auto source = tiny_source();
+  int calls = 0;
+  FrameDetector detector = [&calls](const Frame& frame) {
+    ++calls;
+    FrameDetections d;
+    d.detections = frame.detections;
+    d.instance = InstanceImage(frame.instance.width, frame.instance.height, 1, 0);
+    for (size_t i = 0; i < frame.instance.data.size(); ++i) {
+      for (size_t k = 0; k < frame.detections.size(); ++k) {
+        if (frame.instance.data[i] != 0 && frame.detections[k].gt_id == frame.instance.data[i]) {
+          d.instance.data[i] = static_cast<uint16_t>(k + 1);
+          break;
+        }
+      }
+    }
+    return d;
+  };
+  OfflineStages stages;
+  auto mapper = std::make_unique<mapping::GaussianMapper>(mapper_params());
+  auto objects = add_object_stage(objects::ObjectMapperParams(), DetectionSource::kDetector, LabelSource::kMasks,
+                                  source->info(), &stages, detector);
+  const OfflineResult result = run_offline_mapping(*source, stages, OfflineMappingParams(), mapper.get());
+  ASSERT_TRUE(result.ok) << result.error;
+  const TinyRun& gt = ground_truth_run();
+  EXPECT_EQ(calls, gt.result.keyframes) << "the detector runs once per keyframe";
+  const auto a = to_object_records(gt.objects->objects()), b = to_object_records(objects->objects());
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].id, b[k].id);
+    EXPECT_LT((a[k].box.centre - b[k].box.centre).norm(), 1e-9) << "object " << a[k].id;
+  }
+  EXPECT_EQ(mapper->map().size(), gt.mapper->map().size());
+  for (const auto& r : a) {
+    EXPECT_EQ(mapper->object_gaussians(r.id).size(), gt.mapper->object_gaussians(r.id).size()) << "object " << r.id;
+  }
+  EXPECT_THROW(add_object_stage(objects::ObjectMapperParams(), DetectionSource::kDetector, LabelSource::kMasks,
+                                source->info(), &stages),
+               std::invalid_argument)
+      << "kDetector without a detector";
+}
+
 TEST(OfflinePipeline, SameObjectsAsTheObjectPipeline) {
   // The object stage inside the offline pipeline is run_object_pipeline's (dqo_objects): the same
   // keyframes (the same selector over the same ground-truth poses) give the same objects.

@@ -4,6 +4,7 @@
 // classes the ROS nodes call: TrackingSession (tracking_node), ObjectMapper (association_node),
 // GaussianMapper (the mapping nodelet).
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -37,16 +38,28 @@ enum class LabelSource {
   kQuadrics,  // no instance image: the mapper labels depth points inside ellipsoid and box
 };
 
-// Where detections come from: the dataset's, or boxes of its instance masks when it has none.
-enum class DetectionSource { kDataset, kMasks };
+// Where detections come from: the dataset's, boxes of its instance masks when it has none, or a
+// detector run on each keyframe's colour image (dqo_map_offline --model).
+enum class DetectionSource { kDataset, kMasks, kDetector };
+
+// A detector's output for one frame: detections and, from segmenting models, the instance image
+// (value k + 1 = detection k; empty without masks).
+struct FrameDetections {
+  std::vector<Detection2d> detections;
+  InstanceImage instance;
+};
+using FrameDetector = std::function<FrameDetections(const Frame&)>;
 
 // The object stage (ObjectMapper) on each keyframe's detections. Fills stages.objects; returns the
-// mapper so that the caller can read its objects and next ID at the end.
+// mapper so that the caller can read its objects and next ID at the end. `detector` is required with
+// DetectionSource::kDetector; its instance image (if any) labels the pixels with LabelSource::kMasks,
+// never the dataset's ground-truth masks.
 std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMapperParams& params,
                                                         DetectionSource detections,
                                                         LabelSource labels,
                                                         const DatasetInfo& info,
-                                                        OfflineStages* stages);
+                                                        OfflineStages* stages,
+                                                        FrameDetector detector = {});
 
 // The object stage's objects as mapping records.
 std::vector<mapping::ObjectRecord> to_object_records(const std::vector<objects::MapObject>& objects);
