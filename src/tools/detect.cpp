@@ -6,7 +6,8 @@
 // (possibly distorted) images, as a detector on the camera's raw images gives them. Beside it:
 // classes.txt (`id name`: the model's names added; an existing entry must agree), and for -seg models
 // detections_instance/NNNNNN.png (uint16, value k + 1 = the frame's k-th detection in the file).
-// The file is written at the end (atomically): an interrupted run leaves none.
+// The file is written at the end (atomically): an interrupted run leaves none. A file that holds
+// detections already is replaced only with --force.
 //
 //   dqo_detect DATASET --model M.onnx [--classes names.txt] [--out detections.txt] [--force] ...
 #include <chrono>
@@ -35,7 +36,7 @@ const std::string kUsage = std::string(
     "  DATASET            own format (camera.yaml, rgb/), TUM RGB-D (rgb.txt, depth.txt) or Replica\n"
     "  --out FILE         detections file (default DATASET/detections.txt); classes.txt and, for -seg\n"
     "                     models, detections_instance/ go beside it\n"
-    "  --force            replace an existing detections file\n"
+    "  --force            replace a detections file that holds detections\n"
     "  --frames N         only the first N frames\n") + dqo::tools::kDetectorUsage;
 
 int usage_error(const std::string& message) {
@@ -84,6 +85,18 @@ bool merge_classes(const fs::path& path, const std::vector<std::string>& names, 
   s << "# class_id class_name\n";
   for (const auto& [id, name] : have) s << id << ' ' << name << '\n';
   return dqo::write_file_atomically(path.string(), s.str(), error);
+}
+
+// Whether a detections file holds any detection (the own format's writer leaves one with its header
+// only where a dataset has none: replacing that loses nothing).
+bool holds_detections(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t b = line.find_first_not_of(" \t\r");
+    if (b != std::string::npos && line[b] != '#') return true;
+  }
+  return false;
 }
 
 }  // namespace
@@ -136,7 +149,9 @@ int main(int argc, char** argv) {
   auto detector = dqo::detector::YoloDetector::create(params, &error);
   if (!detector) return fail(error);
   std::error_code ec;
-  if (fs::exists(out, ec) && !force) return fail(out + " exists: give --force to replace it, or --out elsewhere");
+  if (fs::exists(out, ec) && holds_detections(out) && !force) {
+    return fail(out + " holds detections already: give --force to replace them, or --out elsewhere");
+  }
   const fs::path out_dir = fs::absolute(out).parent_path();
   fs::create_directories(out_dir, ec);
   if (!fs::is_directory(out_dir, ec)) return fail("cannot create " + out_dir.string());

@@ -19,7 +19,8 @@ namespace {
 
 using test::TempDir;
 
-// A two-frame 320x240 dataset with poses, colour and depth, no detections.
+// A two-frame 320x240 dataset with poses, colour and depth, no detections (its detections.txt holds
+// the header line only: dqo_detect may fill it without --force).
 bool write_dataset(const std::string& dir) {
   DatasetInfo info;
   info.camera.fx = info.camera.fy = 300;
@@ -88,7 +89,8 @@ TEST(DqoDetect, WritesDetectionsTheDatasetReaderReadsBack) {
   }
   EXPECT_EQ(reader->info().class_names.at(2), "book");
 
-  // Once more: the file exists; --force replaces it; a classes.txt that disagrees stops the run.
+  // Once more: the file holds detections now; --force replaces them; a classes.txt that disagrees
+  // stops the run.
   EXPECT_EQ(run(common), 1);
   EXPECT_EQ(run(common + " --force --frames 1"), 0);
   EXPECT_EQ(open_dataset(data, &error)->read_frame(1, &error)->detections.size(), 0u) << "only frame 0 now";
