@@ -1,5 +1,7 @@
 #include "dqo_map/common/text_util.h"
 
+#include <algorithm>
+
 #include <unistd.h>
 
 #include <charconv>
@@ -129,6 +131,17 @@ bool write_file_atomically(const std::string& path, const std::string& content,
     return fail(error, path + ": cannot rename the temporary file into place: " + ec.message());
   }
   return true;
+}
+
+std::vector<std::string> split_list(const std::string& text, char separator) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t end = std::min(text.find(separator, start), text.size());
+    if (end > start) out.push_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  return out;
 }
 
 }  // namespace dqo::text

@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <sstream>
 #include <string>
-#include <vector>
 
+#include "dqo_map/common/text_util.h"
 #include "dqo_map/detector/yolo_detector.h"
 
 namespace dqo::tools {
@@ -21,16 +21,6 @@ constexpr char kDetectorUsage[] =
     "  --layout L         auto (from the output shapes), v5, v8, v11 or v10\n"
     "  --confidence C     score threshold (default 0.25); --nms-iou T: NMS overlap (default 0.45)\n"
     "  --keep a,b         only these classes (by name); --ignore a,b: not these\n";
-
-inline std::vector<std::string> split_names(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream s(text);
-  std::string item;
-  while (std::getline(s, item, ',')) {
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
 
 inline std::string default_class_names() {
 #ifdef DQO_SOURCE_DIR
@@ -73,9 +63,9 @@ inline bool parse_detector_option(int argc, char** argv, int* i, detector::YoloP
     if (end == v.c_str() || *end != '\0' || !(d >= 0.0 && d <= 1.0)) *error = a + " takes a number in [0, 1]";
     (a == "--confidence" ? p->confidence : p->nms_iou) = static_cast<float>(d);
   } else if (a == "--keep") {
-    p->keep_classes = split_names(v);
+    p->keep_classes = text::split_list(v);
   } else {
-    p->ignore_classes = split_names(v);
+    p->ignore_classes = text::split_list(v);
   }
   return true;
 }

@@ -22,6 +22,7 @@
 #include <opencv2/core.hpp>
 
 #include "dqo_map/common/statistics.h"
+#include "dqo_map/common/text_util.h"
 #include "dqo_map/detector/yolo_decode.h"
 #include "dqo_map/detector/yolo_detector.h"
 #include "dqo_map/detector/yolo_layout.h"
@@ -87,9 +88,7 @@ void bench_decode(const char* name, const std::vector<std::vector<int>>& shapes)
 
 std::vector<int> parse_list(const char* s) {
   std::vector<int> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(std::atoi(item.c_str()));
+  for (const std::string& item : dqo::text::split_list(s)) out.push_back(std::atoi(item.c_str()));
   return out;
 }
 

@@ -30,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "dqo_map/common/text_util.h"
 #include "dqo_map/gaussians/gaussian_ply.h"
 #include "dqo_map/gaussians/rasteriser.h"
 #include "dqo_map/gaussians/trainer.h"
@@ -45,9 +46,7 @@ namespace {
 
 std::vector<int> parse_list(const char* s) {
   std::vector<int> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(std::atoi(item.c_str()));
+  for (const std::string& item : text::split_list(s)) out.push_back(std::atoi(item.c_str()));
   return out;
 }
 

@@ -18,6 +18,9 @@ bool parse_double(const std::string& token, double* value, bool allow_non_finite
 bool parse_float(const std::string& token, float* value);
 bool parse_int(const std::string& token, long long* value);
 
+// The items of a separated list ("a,b,,c" -> a b c: empty items dropped), for command-line lists.
+std::vector<std::string> split_list(const std::string& text, char separator = ',');
+
 // One meaningful line of a text file: blank lines and lines whose first non-blank character is '#'
 // are skipped, but line numbers count them.
 struct TextLine {
