@@ -44,8 +44,16 @@ bool CameraTf::is_ancestor(const std::string& ancestor, const std::string& frame
 
 std::optional<SE3> CameraTf::lookup(const std::string& target, const std::string& source,
                                     const ros::Time& stamp, std::string* error) const {
+  // The wait is in wall time. tf2's own timeout polls with sleeps of ROS time, which stands still
+  // when /clock does (a paused bag, a bag at its end, a test that stops the clock): a frame whose
+  // image beat its transform into the node would then hold the callback thread until time moved
+  // on, and every frame behind it with it (seen: a rostest's last keyframes never came).
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(options_.timeout);
+  while (!buffer_.canTransform(target, source, stamp) && ros::WallTime::now() < deadline && ros::ok()) {
+    ros::WallDuration(0.002).sleep();
+  }
   try {
-    const auto tf = buffer_.lookupTransform(target, source, stamp, ros::Duration(options_.timeout));
+    const auto tf = buffer_.lookupTransform(target, source, stamp);
     return from_transform_msg(tf.transform);
   } catch (const tf2::TransformException& e) {
     if (error) *error = "no transform " + target + " <- " + source + " at " + std::to_string(stamp.toSec()) + ": " + e.what();

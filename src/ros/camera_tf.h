@@ -27,7 +27,8 @@ struct CameraTfOptions {
   std::string map_frame = "map";
   std::string odom_frame;  // empty: none
   std::string base_frame;  // empty: the root of the camera's tree
-  double timeout = 0.1;    // seconds to wait for a transform at the image stamp
+  double timeout = 0.1;    // wall seconds to wait for a transform at the image stamp (never ROS
+                           // time: a paused bag stops it)
   double root_wait = 2.0;  // seconds (ROS time) before a parentless camera frame counts as the root
 };
 
