@@ -49,7 +49,7 @@ std::optional<SE3> CameraTf::lookup(const std::string& target, const std::string
   // image beat its transform into the node would then hold the callback thread until time moved
   // on, and every frame behind it with it (seen: a rostest's last keyframes never came).
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(options_.timeout);
-  while (!buffer_.canTransform(target, source, stamp) && ros::WallTime::now() < deadline && ros::ok()) {
+  while (!buffer_.canTransform(target, source, stamp) && ros::WallTime::now() < deadline) {
     ros::WallDuration(0.002).sleep();
   }
   try {

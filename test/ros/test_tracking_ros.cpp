@@ -1,13 +1,22 @@
 // tracking_node's skin without a ROS master: image messages of every accepted encoding become the
-// core's images (and others are refused with a message naming them), calibrations are copied, and
-// ROS parameter trees go through the tracking configuration's strict loader.
+// core's images (and others are refused with a message naming them), calibrations are copied, ROS
+// parameter trees go through the tracking configuration's strict loader, and tf lookups do not hang
+// on a stopped clock.
+#include <chrono>
 #include <cmath>
 #include <cstring>
+#include <future>
 #include <limits>
+#include <memory>
+#include <optional>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <sensor_msgs/image_encodings.h>
 
+#include <tf2_ros/buffer.h>
+
+#include "camera_tf.h"
 #include "conversions.h"
 #include "ros_params.h"
 
@@ -150,3 +159,47 @@ TEST(TrackingRos, ParameterTreesGoThroughTheStrictLoader) {
 }
 
 }  // namespace
+
+// pose_source tf with the ROS clock standing still (a paused bag, a test that stops /clock): a
+// transform that comes a little after its image is still found, within the timeout in wall time.
+// tf2's own timeout sleeps in ROS time and would wait for ever here; the lookups run on detached
+// threads so that such a hang fails the test instead of stalling it.
+std::future<std::optional<dqo::SE3>> lookup_async(const CameraTf& tf, const std::string& frame, const ros::Time& stamp) {
+  auto promise = std::make_shared<std::promise<std::optional<dqo::SE3>>>();
+  auto future = promise->get_future();
+  std::thread([&tf, frame, stamp, promise] {
+    std::string error;
+    promise->set_value(tf.camera_pose(frame, stamp, &error));
+  }).detach();
+  return future;
+}
+
+TEST(TrackingRos, TfLookupWaitsInWallTimeWhileTheClockStandsStill) {
+  ros::Time::init();
+  ros::Time::setNow(ros::Time(100.0));  // sim time, and it does not move
+  static tf2_ros::Buffer buffer;        // static: outlives a lookup left hanging by a regression
+  buffer.setUsingDedicatedThread(true);
+  CameraTfOptions options;
+  options.map_frame = "map";
+  options.timeout = 2.0;
+  static const CameraTf tf(buffer, options);
+  const ros::Time stamp(100.0);
+  auto found = lookup_async(tf, "cam", stamp);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the transform comes after the image
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = stamp;
+  t.header.frame_id = "map";
+  t.child_frame_id = "cam";
+  t.transform.translation.x = 1.5;
+  t.transform.rotation.w = 1.0;
+  buffer.setTransform(t, "test");
+  ASSERT_EQ(found.wait_for(std::chrono::seconds(5)), std::future_status::ready)
+      << "the lookup waited on the stopped ROS clock";
+  const auto pose = found.get();
+  ASSERT_TRUE(pose);
+  EXPECT_DOUBLE_EQ(pose->translation().x(), 1.5);
+  // A transform that never comes: nullopt after the timeout (wall time), not a hang.
+  auto missing = lookup_async(tf, "other_cam", stamp);
+  ASSERT_EQ(missing.wait_for(std::chrono::seconds(5)), std::future_status::ready);
+  EXPECT_FALSE(missing.get());
+}
