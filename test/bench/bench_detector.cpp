@@ -1,7 +1,8 @@
 // bench_detector: the YOLO detector's costs on this CPU (issue 13).
 //   1. Decoding and NMS of a YOLOv8 output with 8400 candidates ([1, 84, 8400], 80 classes): 30
 //      objects, each seen by 12 overlapping candidates above the threshold, the rest below it (as a
-//      trained model's scores fall), and the same for YOLOv5's [1, 25200, 85]; median of 200.
+//      trained model's scores fall), and the same for YOLOv5's [1, 25200, 85]; median of 200. The
+//      instance image of a -seg output with those 30 detections.
 //   2. Full inference at 640x640 of a random-weight network of YOLOv8n's size (3.2 M parameters,
 //      8.7 GFLOPs; test/bench/yolo_random_model.py exports it with Debian's python3-torch) on a
 //      640x480 image: pre-processing, inference and decoding, median of --repeats after 3 warm-ups,
@@ -26,6 +27,7 @@
 #include "dqo_map/detector/yolo_decode.h"
 #include "dqo_map/detector/yolo_detector.h"
 #include "dqo_map/detector/yolo_layout.h"
+#include "dqo_map/detector/yolo_masks.h"
 
 namespace {
 
@@ -57,6 +59,7 @@ std::vector<float> synthetic_output(const OutputLayout& l, int objects, int per_
     if (l.objectness()) set(j, 4, obj >= 0 ? 0.9f : 0.05f * u(rng));
     for (int c = 0; c < l.num_classes; ++c) set(j, first + c, 0.05f * u(rng));
     if (obj >= 0) set(j, first + obj % l.num_classes, 0.5f + 0.4f * u(rng));
+    for (int m = 0; m < l.mask_dim; ++m) set(j, first + l.num_classes + m, 2.f * u(rng) - 1.f);  // -seg
   }
   return out;
 }
@@ -86,6 +89,34 @@ void bench_decode(const char* name, const std::vector<std::vector<int>>& shapes)
               name, l.num_candidates, dqo::median(decode), dqo::median(nms), candidates, kept);
 }
 
+// The instance image of a -seg model: 30 detections (boxes of 40-140 pixels) with 32 coefficients on
+// 160x160 prototypes, into a 640x480 image.
+void bench_masks() {
+  OutputLayout l;
+  std::string error;
+  if (!identify_layout({{1, 116, 8400}, {1, 32, 160, 160}}, YoloLayout::kAuto, 80, &l, &error)) std::exit(1);
+  const std::vector<float> out = synthetic_output(l, 30, 12, 2);
+  std::mt19937 rng(5);
+  std::normal_distribution<float> n(0.f, 1.f);
+  std::vector<float> protos(32 * 160 * 160);
+  for (float& p : protos) p = n(rng);
+  DecodeParams p;
+  const std::vector<Candidate> kept = non_max_suppression(decode_candidates(out.data(), l, p), p);
+  const Letterbox lb = Letterbox::make(640, 480, 640, 640);
+  std::vector<double> ms;
+  size_t pixels = 0;
+  for (int r = 0; r < 55; ++r) {
+    const auto t = Clock::now();
+    const dqo::InstanceImage inst = instance_from_masks(out.data(), protos.data(), l, kept, lb, 0.5f);
+    if (r >= 5) ms.push_back(ms_since(t));
+    pixels = 0;
+    for (uint16_t v : inst.data) pixels += v != 0;
+  }
+  std::printf("masks  YOLOv8-seg, %zu detections, 32 x 160x160 prototypes -> 640x480: %.2f ms (%zu pixels labelled); "
+              "median of 50\n",
+              kept.size(), dqo::median(ms), pixels);
+}
+
 std::vector<int> parse_list(const char* s) {
   std::vector<int> out;
   for (const std::string& item : dqo::text::split_list(s)) out.push_back(std::atoi(item.c_str()));
@@ -109,6 +140,7 @@ int main(int argc, char** argv) {
   }
   bench_decode("YOLOv8 [1, 84, 8400]", {{1, 84, 8400}});
   bench_decode("YOLOv5 [1, 25200, 85]", {{1, 25200, 85}});
+  bench_masks();
 
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "dqo_bench_detector";
   std::filesystem::create_directories(dir);
