@@ -5,6 +5,7 @@
 
 #include "camera_yaml.h"
 #include "dataset_reader_util.h"
+#include "side_files.h"
 #include "dqo_map/io/dataset_reader.h"
 #include "text_util.h"
 
@@ -40,6 +41,7 @@ class ReplicaDatasetReader : public io_detail::BasicDatasetReader {
     const std::string rgb_path = dir_ + "/results/" + numbered("frame", i, "jpg");
     const std::string depth_path = dir_ + "/results/" + numbered("depth", i, "png");
     if (!read_rgbd(rgb_path, depth_path, &frame, error)) return std::nullopt;
+    frame.detections = detections_[i];
     return frame;
   }
 
@@ -65,7 +67,12 @@ class ReplicaDatasetReader : public io_detail::BasicDatasetReader {
     if (!fs::is_directory(dir + "/results", ec)) {
       return fail(error, dir + "/results: folder missing");
     }
-    return read_trajectory(dir + "/traj.txt", error);
+    if (!read_trajectory(dir + "/traj.txt", error)) return false;
+    // The own format's side files, when a detector (dqo_detect) or a user put them here: the
+    // detections by frame index and their class names.
+    detections_.resize(poses_.size());
+    return io_detail::read_classes_file(dir + "/classes.txt", &info_.class_names, error) &&
+           io_detail::read_detections_file(dir + "/detections.txt", info_.class_names, nullptr, &detections_, error);
   }
 
  private:
@@ -94,6 +101,7 @@ class ReplicaDatasetReader : public io_detail::BasicDatasetReader {
   }
 
   std::vector<SE3> poses_;  // line i of traj.txt is frame i
+  std::vector<std::vector<Detection2d>> detections_;  // [frame]
   double frame_period_ = 1.0 / 30.0;
 };
 

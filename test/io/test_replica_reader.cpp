@@ -108,5 +108,34 @@ TEST(ReplicaReader, CamParamsBesideTheSceneWinAndErrorsNameTheFile) {
   EXPECT_NE(error.find("cam_params.json: missing"), std::string::npos) << error;
 }
 
+TEST(ReplicaReader, ReadsDetectionsAndClassesBesideTheScene) {
+  // What dqo_detect writes into a Replica folder: detections by frame index, their class names.
+  test::TempDir tmp;
+  const std::string dir = tmp / "room1";
+  write_replica(dir, dir);
+  test::write_text(dir + "/classes.txt", "# class_id class_name\n41 cup\n56 chair\n");
+  test::write_text(dir + "/detections.txt",
+                   "# frame x1 y1 x2 y2 class_id score\n2 1.5 0.5 4.25 3 41 0.875\n0 0 0 2 2 56 0.5\n2 0 1 1 2 56 0.25\n");
+  std::string error;
+  const auto reader = open_dataset(dir, &error);
+  ASSERT_TRUE(reader) << error;
+  EXPECT_EQ(reader->info().class_names.at(41), "cup");
+  const auto f0 = reader->read_frame(0, &error), f1 = reader->read_frame(1, &error), f2 = reader->read_frame(2, &error);
+  ASSERT_TRUE(f0 && f1 && f2) << error;
+  ASSERT_EQ(f0->detections.size(), 1u);
+  EXPECT_EQ(f0->detections[0].class_name, "chair");
+  EXPECT_TRUE(f1->detections.empty());
+  ASSERT_EQ(f2->detections.size(), 2u);
+  EXPECT_EQ(f2->detections[0].class_id, 41);
+  EXPECT_EQ(f2->detections[0].class_name, "cup");
+  EXPECT_FLOAT_EQ(f2->detections[0].score, 0.875f);
+  EXPECT_DOUBLE_EQ(f2->detections[0].box.x_min, 1.5);
+  EXPECT_DOUBLE_EQ(f2->detections[0].box.x_max, 4.25);
+  // A frame beyond the trajectory is an error naming the line.
+  test::write_text(dir + "/detections.txt", "3 0 0 1 1 41 0.5\n");
+  EXPECT_FALSE(open_dataset(dir, &error));
+  EXPECT_NE(error.find("detections.txt:1:"), std::string::npos) << error;
+}
+
 }  // namespace
 }  // namespace dqo

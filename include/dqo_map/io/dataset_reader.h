@@ -21,7 +21,8 @@
 // Replica (NICE-SLAM): results/frameNNNNNN.jpg (colour), results/depthNNNNNN.png (uint16, scale
 // 6553.5 unless cam_params.json says otherwise), traj.txt with one camera-to-world 4x4 matrix per
 // line (16 numbers, row-major) for frame NNNNNN = line index. The frame count is the number of
-// poses. Replica has no timestamps: frame i gets i * frame_period.
+// poses. Replica has no timestamps: frame i gets i * frame_period. classes.txt and detections.txt
+// (frame column: the frame index; e.g. from dqo_detect) are read when present.
 //
 // Readers are immutable after opening: read_frame may be called from several threads at once.
 // Text files are parsed, and malformed lines reported, when the dataset is opened; images are
