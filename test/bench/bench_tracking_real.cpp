@@ -40,6 +40,7 @@ using dqo::tracking::TrackingState;
 
 struct BenchFrame {
   double t = 0.0;
+  std::optional<double> depth_t;  // the depth image's own stamp (TUM)
   SE3 T_wc;  // ground truth
   bool has_gt = false;
   std::shared_ptr<const dqo::ImageRgb8> rgb;
@@ -95,6 +96,7 @@ std::optional<Sequence> load_tum(const std::string& dir, const std::string& came
     if (!f) return std::nullopt;
     BenchFrame b;
     b.t = f->timestamp;
+    b.depth_t = f->depth_timestamp;
     b.T_wc = f->T_wc;
     b.has_gt = f->has_pose;
     b.rgb = std::make_shared<dqo::ImageRgb8>(std::move(f->rgb));
@@ -155,6 +157,7 @@ Sequence inject(const Sequence& s, const std::string& fault, Fault* f) {
       if (!done && s.frames[i].t >= start && i + 1 < s.frames.size()) {
         BenchFrame again = s.frames[i];
         again.t = 0.5 * (s.frames[i].t + s.frames[i + 1].t);  // the camera did not move
+        if (again.depth_t) *again.depth_t += again.t - s.frames[i].t;  // nor did the depth's
         out.frames.push_back(again);
         f->end = again.t;
         done = true;
@@ -184,7 +187,7 @@ Stats run(const Sequence& s, const Fault& fault, bool verbose) {
   std::vector<TrackingState> states;  // per estimate entry
   std::vector<double> ms, cpu_ms;
   for (const BenchFrame& f : s.frames) {
-    const dqo::tracking::RgbdInput input{f.t, f.rgb.get(), f.depth.get()};
+    const dqo::tracking::RgbdInput input{f.t, f.rgb.get(), f.depth.get(), f.depth_t};
     const double c0 = thread_cpu_ms();
     const dqo::tracking::TrackResult r = tracker.track(input);
     cpu_ms.push_back(thread_cpu_ms() - c0);
