@@ -50,6 +50,7 @@ class TumDatasetReader : public io_detail::BasicDatasetReader {
     Frame frame;
     frame.index = i;
     frame.timestamp = e.timestamp;
+    frame.depth_timestamp = e.depth_timestamp;
     frame.has_pose = e.has_pose;
     frame.T_wc = e.T_wc;
     if (!read_rgbd(dir_ + "/" + e.rgb, dir_ + "/" + e.depth, &frame, error)) return std::nullopt;
@@ -110,6 +111,7 @@ class TumDatasetReader : public io_detail::BasicDatasetReader {
       e.timestamp = rgb[i].timestamp;
       e.rgb = rgb[i].path;
       e.depth = depth[j].path;
+      e.depth_timestamp = depth[j].timestamp;
       if (auto pose = pose_at(groundtruth, e.timestamp, params.pose)) {
         e.T_wc = *pose;
         e.has_pose = true;
@@ -155,6 +157,7 @@ class TumDatasetReader : public io_detail::BasicDatasetReader {
     double timestamp = 0.0;
     std::string rgb;
     std::string depth;
+    double depth_timestamp = 0.0;
     SE3 T_wc;
     bool has_pose = false;
   };

@@ -445,7 +445,9 @@ void TrackingNode::track_frame(const ImageConstPtr& rgb_msg, const ImageConstPtr
       if (!throttled("level", 2.0)) ROS_INFO("tracking: map not anchored yet (%s): frame skipped", error.c_str());
       return;
     }
-    const tracking::RgbdInput input{stamp.toSec(), &rgb, &depth};
+    // Both stamps: a camera that does not capture colour and depth together (Kinect v1 through
+    // openni) is tracked on the colour's instant (PoseOptimiserParams::max_depth_gap_s).
+    const tracking::RgbdInput input{stamp.toSec(), &rgb, &depth, depth_msg->header.stamp.toSec()};
     r = session_->track(undistorter_->camera(), input);
   }
   if (r.skipped != tracking::SessionResult::Skip::kNone) {

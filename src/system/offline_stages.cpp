@@ -44,7 +44,8 @@ void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCam
   stages->pose = [session, anchors, camera](const Frame& frame) {
     const auto t0 = std::chrono::steady_clock::now();
     FramePose out;
-    const tracking::RgbdInput input{frame.timestamp, &frame.rgb, &frame.depth};
+    const tracking::RgbdInput input{frame.timestamp, &frame.rgb, &frame.depth,
+                                    frame.depth_timestamp};
     const tracking::SessionResult r = session->track(camera, input);
     out.ms = ms_since(t0);
     if (r.skipped != tracking::SessionResult::Skip::kNone ||

@@ -174,7 +174,8 @@ int main(int argc, char** argv) {
       return 1;
     }
     if (frame->has_pose) ground_truth.emplace_back(frame->timestamp, frame->T_wc);
-    const dqo::tracking::RgbdInput input{frame->timestamp, &frame->rgb, &frame->depth};
+    const dqo::tracking::RgbdInput input{frame->timestamp, &frame->rgb, &frame->depth,
+                                         frame->depth_timestamp};
     const dqo::tracking::SessionResult r = session.track(camera, input);
     if (r.skipped != dqo::tracking::SessionResult::Skip::kNone) {
       ++skipped;

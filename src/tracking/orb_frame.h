@@ -37,6 +37,9 @@ struct Keypoint {
   // pixel: how much the depth moves when the keypoint is off by a pixel. Large across a depth
   // edge (or beside a hole), where the depth of a corner is ambiguous.
   float depth_slope = 0.0f;
+  // Extra σ (metres) of the depth where depth and colour were not captured together (the
+  // Tracker sets it: PoseOptimiserParams::asynchronous_depth_sigma_per_m2); 0 otherwise.
+  float depth_sync_sigma = 0.0f;
 };
 
 // The scales of the pyramid, shared by extraction, matching and the optimisers.

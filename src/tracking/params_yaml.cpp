@@ -73,6 +73,8 @@ Section schema(TrackingConfig& c) {
                                   {"depth_sigma_min_m", &t.pose.depth_sigma_min_m, 0.0, kInf},
                                   {"iterations", &t.pose.iterations, 1, 1000},
                                   {"max_prior_chi2", &t.pose.max_prior_chi2, 0.0, kInf},
+                                  {"max_depth_gap_s", &t.pose.max_depth_gap_s, 0.0, kInf},
+                                  {"asynchronous_depth_sigma_per_m2", &t.pose.asynchronous_depth_sigma_per_m2, 0.0, kInf},
                               },
                               {}},
                       Section{"search",

@@ -27,17 +27,18 @@ double depth_sigma(double depth, const PoseOptimiserParams& params) {
 }
 
 double keypoint_depth_sigma(double depth, double slope, double scale,
-                            const PoseOptimiserParams& params) {
+                            const PoseOptimiserParams& params, double sync_sigma) {
   const double sensor = depth_sigma(depth, params);
   const double position = slope * scale;
-  return std::sqrt(sensor * sensor + position * position);
+  return std::sqrt(sensor * sensor + position * position + sync_sigma * sync_sigma);
 }
 
 double match_depth_sigma(double depth, double slope, double scale,
-                         const PoseOptimiserParams& params) {
-  const double keypoint = keypoint_depth_sigma(depth, slope, scale, params);
+                         const PoseOptimiserParams& params, double sync_sigma) {
+  const double keypoint = keypoint_depth_sigma(depth, slope, scale, params, sync_sigma);
+  // The point came from another depth image of the same sensor: as coarse as this one.
   const double point = depth_sigma(depth, params);
-  return std::sqrt(keypoint * keypoint + point * point);
+  return std::sqrt(keypoint * keypoint + point * point + sync_sigma * sync_sigma);
 }
 
 namespace {

@@ -45,14 +45,15 @@ constexpr double kChi2Rgbd = 7.815;
 // σ of a depth measurement: k z², never below a floor that covers the map point's own error.
 double depth_sigma(double depth, const PoseOptimiserParams& params);
 
-// σ of the depth residual of a keypoint: the sensor's noise and what a keypoint position error
-// of one pixel at its level (`scale` pixels at level 0) does on a surface of that slope.
+// σ of the depth residual of a keypoint: the sensor's noise, what a keypoint position error
+// of one pixel at its level (`scale` pixels at level 0) does on a surface of that slope, and
+// `sync_sigma` (Keypoint::depth_sync_sigma: depth captured apart from the colour), in quadrature.
 double keypoint_depth_sigma(double depth, double slope, double scale,
-                            const PoseOptimiserParams& params);
+                            const PoseOptimiserParams& params, double sync_sigma = 0.0);
 // The same for a keypoint matched to a 3D point measured by another depth image: both sensors'
-// noise counts.
+// noise counts (and sync_sigma for both).
 double match_depth_sigma(double depth, double slope, double scale,
-                         const PoseOptimiserParams& params);
+                         const PoseOptimiserParams& params, double sync_sigma = 0.0);
 
 PoseOptimisationResult optimise_pose(const SE3& T_wc_guess,
                                      const std::vector<PoseObservation>& observations,

@@ -86,7 +86,8 @@ PnpResult solve_pnp(const OrbFrame& frame, const KeyframeMatches& km, const MapS
     const Keypoint& kp = frame.keypoints[m.first];
     o.depth = kp.depth;
     o.inv_sigma = scales.inv_scale[kp.octave];
-    o.depth_sigma = match_depth_sigma(kp.depth, kp.depth_slope, scales.scale[kp.octave], pose_params);
+    o.depth_sigma = match_depth_sigma(kp.depth, kp.depth_slope, scales.scale[kp.octave], pose_params,
+                                      kp.depth_sync_sigma);
     return o;
   };
   std::vector<PoseObservation> observations;

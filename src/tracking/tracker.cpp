@@ -68,9 +68,13 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
   }
   submit_local_ba();
 
+  depth_asynchronous_ = input.depth_timestamp.has_value() &&
+                        std::abs(*input.depth_timestamp - input.timestamp) >
+                            params_.pose.max_depth_gap_s;
   TrackedFrame frame;
   frame.number = ++frame_counter_;
   if (params_.use_features) extractor_.extract(*input.rgb, *input.depth, &frame.features);
+  if (depth_asynchronous_) mark_asynchronous_depth(&frame);
   frame.map_points.assign(frame.features.size(), kNoId);
   // Two pyramids, swapped every frame: their buffers are reused (no allocation per frame).
   const RgbdPyramid* pyramid = nullptr;
@@ -221,7 +225,9 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
 
   const QualityVerdict verdict = assess_quality(e, params_.quality);
   if (verdict.state != TrackingState::kLost) {
-    if (prior) accumulate_odometry(&*prior, T_wc);
+    // Dense odometry between keyframes measures the depth's instants where those are not the
+    // colour's: left out of bundle adjustment then, like the prior (max_depth_gap_s).
+    if (prior && !depth_asynchronous_) accumulate_odometry(&*prior, T_wc);
     else odometry_valid_ = false;
     // Keyframes from poses the RGB-D evidence supports: a monocular pose (depth dropped) adds no
     // points and would anchor the map on its weaker rotation.
@@ -301,6 +307,16 @@ void Tracker::Impl::finish_frame(TrackedFrame* frame, const SE3& T_wc, bool upda
   last_ = std::move(*frame);
 }
 
+void Tracker::Impl::mark_asynchronous_depth(TrackedFrame* frame) const {
+  // PoseOptimiserParams::asynchronous_depth_sigma_per_m2 says why; the sensor's own σ stays in
+  // keypoint_depth_sigma, this term brings the total to the coarser model.
+  const double k = params_.pose.asynchronous_depth_sigma_per_m2;
+  for (Keypoint& kp : frame->features.keypoints) {
+    if (kp.depth <= 0.0f) continue;
+    kp.depth_sync_sigma = static_cast<float>(k * kp.depth * kp.depth);
+  }
+}
+
 namespace {
 
 // Adjoint of T on [rho; phi]: T exp(xi) = exp(Ad(T) xi) T.
@@ -371,6 +387,19 @@ FeatureOutcome Tracker::Impl::track_features(TrackedFrame* frame, const DensePri
     search_local_map(frame, guess, params_.search.local_map_radius_px);
   }
 
+  if (prior != nullptr && depth_asynchronous_) {
+    // Depth not captured with the colour: the features alone where they hold by themselves
+    // (max_depth_gap_s), the fusion only to carry weak ones.
+    Refinement alone = refine(*frame, guess, nullptr, {});
+    if (alone.map_inliers >= 2 * params_.min_inliers_ok) {
+      keep_inliers(frame, alone);
+      out.ran = true;
+      out.T_wc = alone.pose.T_wc;
+      out.inliers = alone.map_inliers;
+      out.ok = true;
+      return out;
+    }
+  }
   Refinement fused = refine(*frame, guess, prior, {});
   out.ran = true;
   out.used_prior = prior != nullptr;
@@ -460,7 +489,8 @@ int Tracker::Impl::match_last_frame(TrackedFrame* frame, const SE3& T_wc_guess, 
       o.depth = k.depth;
       o.inv_sigma = extractor_.scales().inv_scale[k.octave];
       o.depth_sigma = match_depth_sigma(k.depth, k.depth_slope,
-                                        extractor_.scales().scale[k.octave], params_.pose);
+                                        extractor_.scales().scale[k.octave], params_.pose,
+                                        k.depth_sync_sigma);
       temporary->push_back(o);
     }
     ++n;
@@ -589,7 +619,8 @@ Refinement Tracker::Impl::refine(const TrackedFrame& frame, const SE3& T_wc_gues
     o.depth = kp.depth;
     o.inv_sigma = extractor_.scales().inv_scale[kp.octave];
     o.depth_sigma = match_depth_sigma(kp.depth, kp.depth_slope,
-                                      extractor_.scales().scale[kp.octave], params_.pose);
+                                      extractor_.scales().scale[kp.octave], params_.pose,
+                                      kp.depth_sync_sigma);
     observations.push_back(o);
     out.keypoints.push_back(static_cast<int>(k));
   }

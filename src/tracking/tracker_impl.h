@@ -84,6 +84,7 @@ struct Tracker::Impl {
   void keep_inliers(TrackedFrame* frame, const Refinement& refinement) const;
   std::vector<uint64_t> relocalisation_candidates();
   void finish_frame(TrackedFrame* frame, const SE3& T_wc, bool update_velocity);
+  void mark_asynchronous_depth(TrackedFrame* frame) const;
   void accumulate_odometry(const DensePrior* prior, const SE3& T_wc);
   void accept(TrackedFrame* frame, const SE3& T_wc, int inliers, bool features_ok,
               bool update_velocity, TrackResult* result, bool keyframe_allowed = true);
@@ -119,6 +120,8 @@ struct Tracker::Impl {
   // What the last frame was reported as (kDegraded too, and kLost for a single lost frame).
   std::atomic<TrackingState> reported_state_{TrackingState::kNotInitialised};
   int failures_ = 0;  // consecutive frames where neither features nor dense held
+  // This frame's depth and colour were not captured together (PoseOptimiserParams::max_depth_gap_s).
+  bool depth_asynchronous_ = false;
   uint64_t frame_counter_ = 0;
   std::optional<TrackedFrame> last_;
   RgbdPyramid current_pyramid_;

@@ -219,7 +219,8 @@ LocalBaProblem Tracker::Impl::local_ba_problem(uint64_t keyframe_id) const {
       o.depth = kp.depth;
       o.inv_sigma = scales.inv_scale[kp.octave];
       o.depth_sigma =
-          keypoint_depth_sigma(kp.depth, kp.depth_slope, scales.scale[kp.octave], params_.pose);
+          keypoint_depth_sigma(kp.depth, kp.depth_slope, scales.scale[kp.octave], params_.pose,
+                               kp.depth_sync_sigma);
       problem.observations.push_back(o);
     }
   }

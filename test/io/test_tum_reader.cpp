@@ -102,6 +102,10 @@ TEST_F(TumFixture, AssociatesByNearestTimestampAndInterpolatesGroundTruth) {
     ASSERT_TRUE(f) << error;
     EXPECT_EQ(f->index, i);
     EXPECT_EQ(f->timestamp, expected[i].t);
+    // The depth image's own stamp (depth.txt): the tracker needs it where the two differ.
+    const double depth_stamps[] = {100.004, 100.030, 100.090, 100.200, 100.301};
+    ASSERT_TRUE(f->depth_timestamp.has_value());
+    EXPECT_EQ(*f->depth_timestamp, depth_stamps[expected[i].depth]);
     EXPECT_EQ(f->rgb.at(2, 1, 0), 10 * (expected[i].rgb + 1));
     EXPECT_EQ(f->rgb.at(2, 1, 1), 0);
     EXPECT_EQ(f->depth.at(2, 1), static_cast<float>(expected[i].depth + 1));

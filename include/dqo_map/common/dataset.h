@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,9 @@ struct FrameObject {
 struct Frame {
   int index = 0;
   double timestamp = 0.0;  // seconds
+  // The depth image's own stamp where the dataset has one (TUM lists colour and depth apart; a
+  // Kinect v1 captures them at different instants): the tracker needs to know.
+  std::optional<double> depth_timestamp;
   SE3 T_wc;                // camera (optical frame) to world; ground truth when the dataset has it
   bool has_pose = false;
   ImageRgb8 rgb;           // 3 channels, RGB

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -68,6 +69,9 @@ struct RgbdInput {
   double timestamp = 0.0;  // seconds; must increase (a jump back is the caller's reset)
   const ImageRgb8* rgb = nullptr;   // 3 channels
   const DepthImage* depth = nullptr;  // metres, 0/NaN = none
+  // The depth image's capture stamp where it differs from the colour image's (a sensor that does
+  // not capture the two together, e.g. a Kinect v1); unset: captured with the colour image.
+  std::optional<double> depth_timestamp;
 };
 
 struct TrackResult {

@@ -54,6 +54,21 @@ struct PoseOptimiserParams {
   // The dense prior's chi-square at the feature solution above which dense and features disagree
   // (6 DoF): the features are then trusted alone when they hold by themselves.
   double max_prior_chi2 = 100.0;
+  // Depth captured more than this apart from the colour image (RgbdInput::depth_timestamp; a
+  // Kinect v1 on TUM fr1: 15 ms by the stamps): the dense alignment then measures the motion
+  // between depth captures, the features that between colour captures. Fused as a prior (and as
+  // the odometry between keyframes) it pulls the trajectory towards the depth's instants, late
+  // by the gap times the speed (1 cm at 0.3 m/s on fr1/xyz). So the features give the pose alone
+  // where they hold by themselves; the dense pose still seeds their search, stands in where they
+  // fail and is compared with them (TrackQuality).
+  double max_depth_gap_s = 0.005;
+  // On such frames a keypoint's depth also counts as this coarse (σ_z = k z², in quadrature with
+  // the sensor's): the two images disagree by the motion between them, and by more than the stamps
+  // say (TUM fr1: 15 ms apart by the stamps; a trajectory pulled by the depth lags the ground truth
+  // by ~25 ms, one weighted as here by ~3 ms). The depth still gives the scale, the colour image
+  // the instant. 0.025 is ORB-SLAM2's model of TUM's Kinect v1 (a virtual stereo of bf = 40 px m:
+  // σ_z = z² / bf per pixel of disparity).
+  double asynchronous_depth_sigma_per_m2 = 0.025;
 };
 
 struct SearchParams {               // data association by projection (ORB-SLAM2's radii)
