@@ -4,7 +4,6 @@
 #include <cmath>
 #include <limits>
 
-#include <opencv2/features2d.hpp>
 
 namespace dqo::tracking {
 namespace {
@@ -134,26 +133,80 @@ void orientation_filter(const std::vector<float>& rotation_deg, std::vector<char
     if (bin_of[i] >= 0 && !allowed[bin_of[i]]) (*keep)[i] = 0;
 }
 
+namespace {
+
+// The two nearest train descriptors of one query, as cv::BFMatcher's knnMatch(k = 2) with
+// NORM_HAMMING gives them (the earlier train index wins a tie).
+struct Nearest {
+  int query = 0, first = -1, second = -1, d_first = 0, d_second = 0;
+};
+
+// The brute-force loop, written once and compiled twice below. Hamming distance by popcount on the
+// 256-bit descriptors: OpenCV's matcher spent most of its time outside the distances (a call and a
+// trace region per pair), and x86-64's baseline has no popcount instruction, so the builtin becomes
+// a library call unless the function is compiled for one.
+inline __attribute__((always_inline)) void nearest_two_body(const std::vector<Descriptor>& query,
+                                                            const std::vector<Descriptor>& train,
+                                                            std::vector<Nearest>* knn) {
+  for (size_t qi = 0; qi < query.size(); ++qi) {
+    Nearest& n = (*knn)[qi];
+    n.query = static_cast<int>(qi);
+    n.d_first = n.d_second = std::numeric_limits<int>::max();
+    const Descriptor& q = query[qi];
+    for (size_t ti = 0; ti < train.size(); ++ti) {
+      const Descriptor& t = train[ti];
+      const int d = __builtin_popcountll(q[0] ^ t[0]) + __builtin_popcountll(q[1] ^ t[1]) +
+                    __builtin_popcountll(q[2] ^ t[2]) + __builtin_popcountll(q[3] ^ t[3]);
+      if (d < n.d_first) {
+        n.second = n.first, n.d_second = n.d_first;
+        n.first = static_cast<int>(ti), n.d_first = d;
+      } else if (d < n.d_second) {
+        n.second = static_cast<int>(ti), n.d_second = d;
+      }
+    }
+  }
+}
+
+void nearest_two(const std::vector<Descriptor>& query, const std::vector<Descriptor>& train,
+                 std::vector<Nearest>* knn) {
+  nearest_two_body(query, train, knn);
+}
+
+#if (defined(__x86_64__) || defined(__i386__)) && !defined(__POPCNT__) && defined(__GNUC__)
+#define DQO_POPCNT_DISPATCH 1
+// The same loop with the popcnt instruction, for the CPUs that have it (every x86-64 of the last
+// fifteen years; checked at run time).
+__attribute__((target("popcnt"))) void nearest_two_popcnt(const std::vector<Descriptor>& query,
+                                                          const std::vector<Descriptor>& train,
+                                                          std::vector<Nearest>* knn) {
+  nearest_two_body(query, train, knn);
+}
+#endif
+
+}  // namespace
+
 std::vector<std::pair<int, int>> match_descriptors(const std::vector<Descriptor>& query,
                                                    const std::vector<Descriptor>& train,
                                                    float ratio, int max_distance) {
   std::vector<std::pair<int, int>> out;
   if (query.empty() || train.size() < 2) return out;
-  const cv::Mat q(static_cast<int>(query.size()), 32, CV_8U,
-                  const_cast<uint64_t*>(query.front().data()));
-  const cv::Mat t(static_cast<int>(train.size()), 32, CV_8U,
-                  const_cast<uint64_t*>(train.front().data()));
-  cv::BFMatcher matcher(cv::NORM_HAMMING, false);
-  std::vector<std::vector<cv::DMatch>> knn;
-  matcher.knnMatch(q, t, knn, 2);
+  std::vector<Nearest> knn(query.size());
+#ifdef DQO_POPCNT_DISPATCH
+  static const bool has_popcnt = __builtin_cpu_supports("popcnt");
+  if (has_popcnt)
+    nearest_two_popcnt(query, train, &knn);
+  else
+#endif
+    nearest_two(query, train, &knn);
   std::vector<int> best_query(train.size(), -1);
   std::vector<float> best_distance(train.size(), std::numeric_limits<float>::max());
-  for (const auto& m : knn) {
-    if (m.empty() || m[0].distance > max_distance) continue;
-    if (m.size() > 1 && m[0].distance > ratio * m[1].distance) continue;
-    if (m[0].distance < best_distance[m[0].trainIdx]) {
-      best_distance[m[0].trainIdx] = m[0].distance;
-      best_query[m[0].trainIdx] = m[0].queryIdx;
+  for (const Nearest& m : knn) {
+    const float d0 = static_cast<float>(m.d_first), d1 = static_cast<float>(m.d_second);
+    if (m.first < 0 || d0 > max_distance) continue;
+    if (m.second >= 0 && d0 > ratio * d1) continue;
+    if (d0 < best_distance[m.first]) {
+      best_distance[m.first] = d0;
+      best_query[m.first] = m.query;
     }
   }
   for (size_t t_index = 0; t_index < train.size(); ++t_index)
