@@ -7,6 +7,7 @@
 #include <set>
 
 #include <gtest/gtest.h>
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "map_store.h"
@@ -329,3 +330,51 @@ TEST(Relocaliser, PnpRecoversARolledCamera) {
 }
 
 }  // namespace
+
+namespace dqo::tracking {
+namespace {
+
+// match_descriptors' own brute force against OpenCV's matcher (what it replaced) with the same
+// ratio and distance tests: random descriptors, near-copies of some (small distances, ties among
+// copies of one), on several seeds; the same matches, pair for pair.
+TEST(MatchDescriptors, SameMatchesAsOpenCvsBruteForceMatcher) {
+  for (uint32_t seed = 1; seed <= 5; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::vector<Descriptor> train(400), query(300);
+    for (auto& d : train) d = {rng(), rng(), rng(), rng()};
+    for (size_t i = 0; i < query.size(); ++i) {
+      if (i % 3 == 0) {
+        query[i] = {rng(), rng(), rng(), rng()};  // unrelated: mostly rejected
+      } else {
+        query[i] = train[(i * 7) % train.size()];
+        for (int flips = static_cast<int>(rng() % 12); flips > 0; --flips) query[i][rng() % 4] ^= 1ull << (rng() % 64);
+      }
+    }
+    for (size_t i = 0; i < 20; ++i) train[200 + i] = train[i];  // exact duplicates: ties
+    const float ratio = 0.8f;
+    const int max_distance = 64;
+    // Reference: cv::BFMatcher knnMatch(k = 2), then the same tests and one query per train.
+    const cv::Mat q(static_cast<int>(query.size()), 32, CV_8U, query.front().data());
+    const cv::Mat t(static_cast<int>(train.size()), 32, CV_8U, train.front().data());
+    std::vector<std::vector<cv::DMatch>> knn;
+    cv::BFMatcher(cv::NORM_HAMMING, false).knnMatch(q, t, knn, 2);
+    std::vector<int> best_query(train.size(), -1);
+    std::vector<float> best_distance(train.size(), 1e9f);
+    for (const auto& m : knn) {
+      if (m.empty() || m[0].distance > max_distance || (m.size() > 1 && m[0].distance > ratio * m[1].distance)) continue;
+      if (m[0].distance < best_distance[m[0].trainIdx]) {
+        best_distance[m[0].trainIdx] = m[0].distance;
+        best_query[m[0].trainIdx] = m[0].queryIdx;
+      }
+    }
+    std::vector<std::pair<int, int>> want;
+    for (size_t k = 0; k < train.size(); ++k)
+      if (best_query[k] >= 0) want.emplace_back(best_query[k], static_cast<int>(k));
+    const auto got = match_descriptors(query, train, ratio, max_distance);
+    EXPECT_GT(want.size(), 50u) << "seed " << seed;
+    EXPECT_EQ(got, want) << "seed " << seed;
+  }
+}
+
+}  // namespace
+}  // namespace dqo::tracking
