@@ -182,7 +182,7 @@ int main(int argc, char** argv) {
     else std::snprintf(key, sizeof key, "%d", frame->index);
     for (const dqo::Detection2d& d : r.detections) {
       char line[256];
-      std::snprintf(line, sizeof line, "%s %.2f %.2f %.2f %.2f %d %.4f\n", key, d.box.x_min, d.box.y_min, d.box.x_max,
+      std::snprintf(line, sizeof line, "%s %.2f %.2f %.2f %.2f %d %.6g\n", key, d.box.x_min, d.box.y_min, d.box.x_max,
                     d.box.y_max, d.class_id, d.score);
       lines << line;
       ++per_class[d.class_name];
