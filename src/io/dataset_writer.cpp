@@ -1,5 +1,7 @@
 #include "dqo_map/io/dataset_writer.h"
 
+#include "dqo_map/io/class_list.h"
+
 #include <stdlib.h>
 
 #include <cmath>
@@ -332,11 +334,8 @@ bool DatasetWriter::finish(std::string* error) {
   if (s.groundtruth.fail() || s.detections.fail() || s.frame_objects.fail()) {
     return set_failed(s.staging.string() + ": cannot flush the text files", error);
   }
-  std::string classes = "# class_id class_name\n";
-  for (const auto& [id, name] : s.class_names) classes += std::to_string(id) + ' ' + name + '\n';
   std::string message;
-  if (!io_detail::write_file_atomically((s.staging / "classes.txt").string(), classes,
-                                        &message)) {
+  if (!write_class_list((s.staging / "classes.txt").string(), s.class_names, &message)) {
     return set_failed(message, error);
   }
 

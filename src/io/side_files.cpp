@@ -7,6 +7,7 @@
 
 #include "dataset_reader_util.h"
 #include "dqo_map/common/object_list.h"
+#include "dqo_map/io/class_list.h"
 #include "dqo_map/io/image_io.h"
 #include "dqo_map/io/mesh_io.h"
 #include "text_util.h"
@@ -133,4 +134,22 @@ bool read_instance_if_present(const std::string& path, const PinholeCamera& came
 }
 
 }  // namespace io_detail
+}  // namespace dqo
+
+namespace dqo {
+
+bool read_class_list(const std::string& path, std::map<int, std::string>* class_names, std::string* error) {
+  return io_detail::read_classes_file(path, class_names, error);
+}
+
+std::string class_list_text(const std::map<int, std::string>& class_names) {
+  std::string text = "# class_id class_name\n";
+  for (const auto& [id, name] : class_names) text += std::to_string(id) + ' ' + name + '\n';
+  return text;
+}
+
+bool write_class_list(const std::string& path, const std::map<int, std::string>& class_names, std::string* error) {
+  return io_detail::write_file_atomically(path, class_list_text(class_names), error);
+}
+
 }  // namespace dqo

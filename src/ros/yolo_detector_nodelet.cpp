@@ -8,7 +8,6 @@
 // with a throttled error; the node never dies on one message.
 #include <deque>
 #include <memory>
-#include <mutex>
 #include <set>
 #include <string>
 

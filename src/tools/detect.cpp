@@ -10,7 +10,6 @@
 // detections already is replaced only with --force.
 //
 //   dqo_detect DATASET --model M.onnx [--classes names.txt] [--out detections.txt] [--force] ...
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -24,6 +23,7 @@
 #include "dqo_map/common/atomic_file.h"
 #include "dqo_map/common/progress.h"
 #include "dqo_map/detector/yolo_detector.h"
+#include "dqo_map/io/class_list.h"
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/io/image_io.h"
 
@@ -54,37 +54,18 @@ int fail(const std::string& message) {
 // refer to this file.
 bool merge_classes(const fs::path& path, const std::vector<std::string>& names, std::string* error) {
   std::map<int, std::string> have;
-  std::error_code ec;
-  if (fs::exists(path, ec)) {
-    std::ifstream in(path);
-    std::string line;
-    while (std::getline(in, line)) {
-      std::istringstream s(line);
-      int id = 0;
-      std::string name;
-      if (line.empty() || line[0] == '#' || !(s >> id)) continue;
-      std::getline(s >> std::ws, name);
-      while (!name.empty() && (name.back() == '\r' || name.back() == ' ')) name.pop_back();
-      have[id] = name;
-    }
-  }
-  bool changed = have.empty();
+  if (!dqo::read_class_list(path.string(), &have, error)) return false;
+  bool changed = false;
   for (size_t k = 0; k < names.size(); ++k) {
-    const auto it = have.find(static_cast<int>(k));
-    if (it == have.end()) {
-      have[static_cast<int>(k)] = names[k];
-      changed = true;
-    } else if (it->second != names[k]) {
+    const auto [it, added] = have.emplace(static_cast<int>(k), names[k]);
+    changed = changed || added;
+    if (it->second != names[k]) {
       *error = path.string() + " names class " + std::to_string(k) + " '" + it->second + "', the model '" + names[k] +
                "': write the detections elsewhere (--out)";
       return false;
     }
   }
-  if (!changed) return true;
-  std::ostringstream s;
-  s << "# class_id class_name\n";
-  for (const auto& [id, name] : have) s << id << ' ' << name << '\n';
-  return dqo::write_file_atomically(path.string(), s.str(), error);
+  return !changed || dqo::write_class_list(path.string(), have, error);
 }
 
 // Whether a detections file holds any detection (the own format's writer leaves one with its header
