@@ -6,7 +6,6 @@
 // images wait in a short buffer for their keyframe). Parameters: config/yolo_detector.yaml.
 // A model that cannot be used stops the nodelet at start with the reason; a bad image is skipped
 // with a throttled error; the node never dies on one message.
-#include <deque>
 #include <memory>
 #include <set>
 #include <string>
@@ -21,6 +20,7 @@
 #include <dqo_map/KeyFrame.h>
 
 #include "conversions.h"
+#include "dqo_map/detector/keyframe_images.h"
 #include "dqo_map/detector/yolo_detector.h"
 #include "ros_params.h"
 
@@ -43,9 +43,8 @@ class YoloDetectorNodelet : public nodelet::Nodelet {
   bool keyframes_only_ = false;
   int buffer_size_ = 30;
   uint64_t images_ = 0;
-  // keyframes_only: recent images, and keyframe stamps whose image has not come yet (both bounded).
-  std::deque<sensor_msgs::ImageConstPtr> recent_;
-  std::deque<ros::Time> pending_;
+  // keyframes_only: recent images and keyframe stamps, each waiting for the other.
+  std::unique_ptr<dqo::detector::KeyframeImages<sensor_msgs::ImageConstPtr>> keyframe_images_;
   // For the periodic report (all callbacks on the nodelet's one input thread: no lock needed).
   uint64_t detected_frames_ = 0, detections_ = 0, skipped_ = 0;
   double inference_ms_ = 0.0, total_ms_ = 0.0;
@@ -108,6 +107,11 @@ void YoloDetectorNodelet::onInit() {
     NODELET_FATAL("yolo_detector: %s", error.c_str());
     return;  // inert: nothing subscribed, nothing published
   }
+  // Before any subscription: callbacks may start at once.
+  if (keyframes_only_) {
+    keyframe_images_ =
+        std::make_unique<dqo::detector::KeyframeImages<sensor_msgs::ImageConstPtr>>(static_cast<size_t>(buffer_size_));
+  }
   ros::NodeHandle& nh = getNodeHandle();
   int queue_size = 1;  // the newest image: a slow model drops frames rather than lag
   getPrivateNodeHandle().param("queue_size", queue_size, queue_size);
@@ -131,32 +135,15 @@ void YoloDetectorNodelet::on_image(const sensor_msgs::ImageConstPtr& msg) {
     if ((images_ - 1) % static_cast<uint64_t>(every_n_) == 0) detect_and_publish(*msg);
     return;
   }
-  for (auto it = pending_.begin(); it != pending_.end(); ++it) {
-    if (*it == msg->header.stamp) {
-      pending_.erase(it);
-      detect_and_publish(*msg);
-      return;
-    }
-  }
-  recent_.push_back(msg);
-  while (static_cast<int>(recent_.size()) > buffer_size_) recent_.pop_front();
+  if (const auto image = keyframe_images_->add_image(msg->header.stamp.toNSec(), msg)) detect_and_publish(**image);
 }
 
 void YoloDetectorNodelet::on_keyframe(const dqo_map::KeyFrame::ConstPtr& msg) {
-  // A keyframe's stamp is its images' stamp (DESIGN.md): the raw image of that stamp is detected.
-  for (auto it = recent_.begin(); it != recent_.end(); ++it) {
-    if ((*it)->header.stamp == msg->header.stamp) {
-      const sensor_msgs::ImageConstPtr image = *it;
-      recent_.erase(recent_.begin(), it + 1);  // older ones cannot become keyframes any more
-      detect_and_publish(*image);
-      return;
-    }
-  }
-  pending_.push_back(msg->header.stamp);
-  while (static_cast<int>(pending_.size()) > buffer_size_) {
-    NODELET_WARN_THROTTLE(5.0, "yolo_detector: no image stamped %.3f came for its keyframe: it gets no detections",
-                          pending_.front().toSec());
-    pending_.pop_front();
+  const uint64_t unmatched = keyframe_images_->unmatched_keyframes();
+  if (const auto image = keyframe_images_->add_keyframe(msg->header.stamp.toNSec())) detect_and_publish(**image);
+  if (keyframe_images_->unmatched_keyframes() > unmatched) {
+    NODELET_WARN_THROTTLE(5.0, "yolo_detector: a keyframe's image never came (%llu so far): it gets no detections",
+                          static_cast<unsigned long long>(keyframe_images_->unmatched_keyframes()));
   }
 }
 
