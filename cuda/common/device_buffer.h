@@ -57,7 +57,12 @@ class DeviceBuffer {
     capacity_ = 0;
   }
   T* get() const { return ptr_; }
+  size_t capacity() const { return capacity_; }
   size_t bytes() const { return capacity_ * sizeof(T); }
+  void swap(DeviceBuffer& other) noexcept {
+    std::swap(ptr_, other.ptr_);
+    std::swap(capacity_, other.capacity_);
+  }
 
  private:
   T* ptr_ = nullptr;

@@ -1,6 +1,7 @@
-// The CUDA training engine's host side (cuda_training_engine.h): the map and optimiser state up
-// once per batch, the views' images cached by key, every iteration on the rasteriser's device
-// pipeline and this ring's loss and Adam kernels, the map and the state down once.
+// The CUDA training engine's host side (cuda_training_engine.h): the map and optimiser state kept
+// on the device from batch to batch (resident_map.h: only what the host appended or flagged goes
+// up, only the trained attributes come down), the views' images cached by key, every iteration on
+// the rasteriser's device pipeline and this ring's loss and Adam kernels.
 
 #include "dqo_map/cuda/cuda_training_engine.h"
 
@@ -13,6 +14,7 @@
 #include "../common/device_buffer.h"
 #include "../raster/raster_pipeline.h"
 #include "dqo_map/gaussians/detail/cpu_rasteriser.h"
+#include "resident_map.h"
 #include "train_cuda.h"
 
 namespace dqo::cuda {
@@ -42,33 +44,46 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       if (s.view >= views.size()) throw std::invalid_argument("CUDA training engine: a step names no view");
     cache_views(views);
     adam->resize_for(*map);
-    const cudaStream_t stream = pipe_.stream();
-
-    // The map and the optimiser state, up.
-    detail::DeviceTrainable t;
-    t.count = n;
-    t.position = upload(&position_, map->positions(), "positions", stream);
-    t.log_scale = upload(&log_scale_, map->log_scales(), "log-scales", stream);
-    t.rotation = upload(&rotation_, map->rotations(), "rotations", stream);
-    t.colour = upload(&colour_, map->colours(), "colours", stream);
-    t.confidence = upload(&confidence_, map->confidences(), "confidences", stream);
-    t.stable = upload(&stable_, map->stable(), "stable flags", stream);
-    const gs::GaussianAdam::State& st = adam->state();
-    const gs::GaussianAdam::Moments* moments[4] = {&st.position, &st.log_scale, &st.rotation, &st.colour};
-    for (int a = 0; a < 4; ++a) {
-      t.m[a] = upload(&m_[a], moments[a]->m, "Adam moments", stream);
-      t.v[a] = upload(&v_[a], moments[a]->v, "Adam moments", stream);
+    try {
+      return run_resident(views, steps, loss, map, adam);
+    } catch (...) {
+      resident_.invalidate();  // the device's copy may be half-trained: the next batch sends all
+      throw;
     }
-    t.steps = upload(&steps_, st.steps, "Adam steps", stream);
-    detail::DeviceGaussians g;
-    g.count = n;
-    g.position = t.position;
-    g.log_scale = t.log_scale;
-    g.rotation = t.rotation;
-    g.colour = t.colour;
-    g.opacity = upload(&opacity_, map->opacities(), "opacities", stream);
-    g.object_id = upload(&object_id_, map->object_ids_per_gaussian(), "object IDs", stream);
-    g.type = upload(&type_, map->types(), "types", stream);
+  }
+
+  void map_removed(const std::vector<uint8_t>& remove) override {
+    try {
+      resident_.remove_if(remove, pipe_.stream());
+    } catch (const std::exception&) {
+      resident_.invalidate();  // the next batch sends the host's map
+    }
+  }
+  void map_replaced() override { resident_.invalidate(); }
+  void fetch_optimiser_state(gs::GaussianAdam* adam) override {
+    if (!resident_.valid() || adam->size() < resident_.count()) return;
+    resident_.download_optimiser(adam, pipe_.stream());
+    check(cudaStreamSynchronize(pipe_.stream()), "optimiser state");
+  }
+
+  size_t device_bytes() const override {
+    size_t total = 0;
+    for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
+    for (const auto* b : {&v_rgb_, &v_depth_, &v_ins_}) total += b->bytes();
+    return total + resident_.bytes() + gradients_.bytes() + pipe_.bytes() + sums_.bytes();
+  }
+
+ private:
+  std::vector<double> run_resident(const std::vector<gs::TrainingView>& views,
+                                   const std::vector<gs::TrainingStep>& steps, const gs::TrainingLoss& loss,
+                                   gs::GaussianMap* map, gs::GaussianAdam* adam) {
+    std::vector<double> losses(steps.size(), 0.0);
+    const size_t n = map->size();
+    const cudaStream_t stream = pipe_.stream();
+    // What the host appended or flagged since the last batch, up.
+    resident_.sync_up(*map, *adam, stream);
+    const detail::DeviceTrainable t = resident_.trainable();
+    const detail::DeviceGaussians g = resident_.gaussians();
     const detail::DeviceAttributeGradients grad = gradients_.get(n);
     double* sums = sums_.ensure(3 * steps.size(), "loss sums");
     check(cudaMemsetAsync(sums, 0, 3 * steps.size() * sizeof(double), stream), "loss sums");
@@ -114,35 +129,13 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       check(cudaGetLastError(), "Adam");
     }
 
-    // Down, all of it, one wait; only then does the host state change.
-    std::vector<float> position, log_scale, rotation, colour, confidence;
-    std::vector<float> m[4], v[4];
-    std::vector<uint32_t> step_counts;
+    // Every iteration done without error before the host's map changes; then the trained
+    // attributes and the loss sums down (the optimiser state stays).
     std::vector<double> host_sums;
-    download(&position, t.position, 3 * n, stream);
-    download(&log_scale, t.log_scale, 3 * n, stream);
-    download(&rotation, t.rotation, 4 * n, stream);
-    download(&colour, t.colour, 3 * n, stream);
-    download(&confidence, t.confidence, n, stream);
-    for (int a = 0; a < 4; ++a) {
-      download(&m[a], t.m[a], moments[a]->m.size(), stream);
-      download(&v[a], t.v[a], moments[a]->v.size(), stream);
-    }
-    download(&step_counts, t.steps, n, stream);
+    check(cudaStreamSynchronize(stream), "training batch");
+    resident_.download_trained(map, stream);
     download(&host_sums, sums, 3 * steps.size(), stream);
     check(cudaStreamSynchronize(stream), "training batch");
-    map->positions() = std::move(position);
-    map->log_scales() = std::move(log_scale);
-    map->rotations() = std::move(rotation);
-    map->colours() = std::move(colour);
-    map->confidences() = std::move(confidence);
-    gs::GaussianAdam::State& state = adam->mutable_state();
-    gs::GaussianAdam::Moments* dst[4] = {&state.position, &state.log_scale, &state.rotation, &state.colour};
-    for (int a = 0; a < 4; ++a) {
-      dst[a]->m = std::move(m[a]);
-      dst[a]->v = std::move(v[a]);
-    }
-    state.steps = std::move(step_counts);
     for (size_t k = 0; k < steps.size(); ++k) {
       losses[k] = host_sums[3 * k] * rgb_norm[k] + host_sums[3 * k + 1] * depth_norm[k] +
                   host_sums[3 * k + 2] * ins_norm[k];
@@ -150,18 +143,6 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     return losses;
   }
 
-  size_t device_bytes() const override {
-    size_t total = 0;
-    for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
-    for (const auto* b : {&position_, &log_scale_, &rotation_, &colour_, &confidence_, &opacity_, &v_rgb_, &v_depth_,
-                          &v_ins_})
-      total += b->bytes();
-    total += gradients_.bytes() + pipe_.bytes();
-    for (int a = 0; a < 4; ++a) total += m_[a].bytes() + v_[a].bytes();
-    return total + stable_.bytes() + type_.bytes() + object_id_.bytes() + steps_.bytes() + sums_.bytes();
-  }
-
- private:
   // Keeps the images of `views` on the device (new keys up, keys no longer in the window freed).
   void cache_views(const std::vector<gs::TrainingView>& views) {
     std::map<uint64_t, std::unique_ptr<CachedView>> kept;
@@ -196,10 +177,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
 
   detail::RasterPipeline pipe_;
   std::map<uint64_t, std::unique_ptr<CachedView>> cache_;
-  DeviceBuffer<float> position_, log_scale_, rotation_, colour_, confidence_, opacity_;
-  DeviceBuffer<uint8_t> stable_, type_;
-  DeviceBuffer<uint32_t> object_id_, steps_;
-  DeviceBuffer<float> m_[4], v_[4];
+  detail::ResidentMap resident_;
   detail::GradientBuffers gradients_;
   DeviceBuffer<float> v_rgb_, v_depth_, v_ins_;
   DeviceBuffer<double> sums_;

@@ -57,4 +57,14 @@ struct DeviceTrainable {
 void launch_adam(const DeviceTrainable& t, const float* grad_position, const float* grad_log_scale,
                  const float* grad_rotation, const float* grad_colour, const AdamRates& rates, cudaStream_t stream);
 
+// The resident map's remove_if (train_compact.cu). keep[i] = (remove[i] == 0) for i < n and
+// keep[n] = 0 (exclusive_scan() of n + 1 entries then ends in the count kept).
+void launch_keep_flags(size_t n, const uint8_t* remove, uint32_t* keep, cudaStream_t stream);
+// dst[offsets[i]·width + c] = src[i·width + c] for every i < n with remove[i] == 0, c < width
+// (offsets: the exclusive scan of the keep flags); for 4-byte (float bits too) and 1-byte values.
+void launch_compact(size_t n, size_t width, const uint8_t* remove, const uint32_t* offsets, const uint32_t* src,
+                    uint32_t* dst, cudaStream_t stream);
+void launch_compact(size_t n, size_t width, const uint8_t* remove, const uint32_t* offsets, const uint8_t* src,
+                    uint8_t* dst, cudaStream_t stream);
+
 }  // namespace dqo::cuda::detail

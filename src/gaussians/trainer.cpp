@@ -633,10 +633,16 @@ void GaussianTrainer::prune(KeyframeReport* report) {
   remove_if(remove);
 }
 
+const GaussianAdam::State& GaussianTrainer::adam_state() {
+  if (engine_) engine_->fetch_optimiser_state(&adam_);
+  return adam_.state();
+}
+
 size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
   sync_state();
   const size_t removed = map_.remove_if(remove);
   if (removed == 0) return 0;
+  if (engine_) engine_->map_removed(remove);
   adam_.remove_if(remove);
   size_t out = 0;
   for (size_t i = 0; i < remove.size(); ++i) {
@@ -683,6 +689,7 @@ size_t GaussianTrainer::relabel(uint32_t from, uint32_t to) {
 
 void GaussianTrainer::set_map(GaussianMap map) {
   map_ = std::move(map);
+  if (engine_) engine_->map_replaced();
   adam_.reset();
   invisible_count_.assign(map_.size(), 0);
   relabel_votes_.assign(map_.size(), 0);

@@ -149,7 +149,7 @@ TEST(CudaTrainingEngine, AMappingStepsLossCurveIsTheHosts) {
     const gs::GaussianMap truth = truth_map(seed);
     Pair t(params(seed, 0));
     build_alike(&t, truth, 4);
-    // 50 iterations, one batch each on the GPU (the engine's map goes up and down every time).
+    // 50 iterations, one batch each on the GPU (the trained attributes come down every time).
     double worst = 0.0;
     for (int it = 0; it < 50; ++it) {
       const double h = t.host.optimise(1), g = t.gpu.optimise(1);

@@ -1,8 +1,9 @@
 #pragma once
-// The CUDA training engine (cuda/train/): GaussianTrainer's iterations on the GPU. A batch uploads
-// the map and the optimiser state once, keeps the window's images on the device from batch to
-// batch, runs every iteration there (forward, losses, backward, Adam; one wait per iteration for
-// the sort's size) and brings the map back once.
+// The CUDA training engine (cuda/train/): GaussianTrainer's iterations on the GPU. The map and the
+// optimiser state stay on the device from batch to batch (a batch sends the Gaussians appended
+// since the last and the stable flags and IDs, and brings back the trained attributes), as do the
+// window's images; every iteration runs there (forward, losses, backward, Adam; one wait per
+// iteration for the sort's size).
 
 #include <memory>
 

@@ -201,7 +201,8 @@ class GaussianTrainer {
   void set_map(GaussianMap map);
 
   const GaussianMap& map() const { return map_; }
-  const GaussianAdam::State& adam_state() const { return adam_.state(); }
+  // The optimiser state (fetched from the engine, which holds it between batches).
+  const GaussianAdam::State& adam_state();
   Rasteriser& rasteriser() { return *rasteriser_; }
 
   // Renders the map: colours as training does; depth of the surfaces (Params::surface_depth) or

@@ -50,9 +50,22 @@ class TrainingEngine {
   virtual ~TrainingEngine() = default;
   // Runs `steps` in order on `map` (its unstable Gaussians: those a step's gradient reaches move,
   // and their confidence grows by one) with `adam`'s rates and state; returns each step's loss.
-  // Throws OutOfDeviceMemory when the device is full (map and adam then are as before the batch).
+  // Throws OutOfDeviceMemory when the device is full (the map then is as before the batch).
+  //
+  // An engine may keep the map and the optimiser state between batches (the GPU's does: moving
+  // them each batch cost more than training). It then takes from `adam` only the state of the
+  // Gaussians appended since the last batch, leaves the rest of `adam` stale (see
+  // fetch_optimiser_state()), and relies on being told what else the caller changed: the caller
+  // may append Gaussians and change stable flags and object IDs freely, removes Gaussians only
+  // through GaussianMap::remove_if with map_removed() given the same mask, and calls
+  // map_replaced() after any other change. After a failed batch the engine holds nothing, and the
+  // optimiser state restarts from `adam` as last fetched.
   virtual std::vector<double> run(const std::vector<TrainingView>& views, const std::vector<TrainingStep>& steps,
                                   const TrainingLoss& loss, GaussianMap* map, GaussianAdam* adam) = 0;
+  virtual void map_removed(const std::vector<uint8_t>& remove) { (void)remove; }
+  virtual void map_replaced() {}
+  // Writes the optimiser state it holds into *adam (sized for the map); nothing if it holds none.
+  virtual void fetch_optimiser_state(GaussianAdam* adam) { (void)adam; }
   // Device bytes held now (the map, optimiser state, gradients, the rasteriser's buffers, cached
   // images), for diagnostics.
   virtual size_t device_bytes() const = 0;

@@ -1,0 +1,211 @@
+// The resident map (resident_map.h): what crosses the bus between training batches.
+
+#include "resident_map.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+namespace dqo::cuda::detail {
+
+namespace {
+
+// Appends host[from·width, n·width) to the device array (its first from·width entries kept).
+template <typename T>
+T* send_tail(GrowingBuffer<T>* buf, const std::vector<T>& host, size_t from, size_t n, size_t width, const char* what,
+             cudaStream_t stream) {
+  if (host.size() != n * width)
+    throw std::invalid_argument(std::string("resident map: ") + what + " has " + std::to_string(host.size()) +
+                                " values for " + std::to_string(n) + " Gaussians");
+  T* d = buf->reserve(n * width, from * width, what, stream);
+  if (n > from)
+    check(cudaMemcpyAsync(d + from * width, host.data() + from * width, (n - from) * width * sizeof(T),
+                          cudaMemcpyHostToDevice, stream),
+          what);
+  return d;
+}
+
+template <typename T>
+void fetch(std::vector<T>* host, const T* device, size_t n, cudaStream_t stream) {
+  host->resize(n);
+  if (n) check(cudaMemcpyAsync(host->data(), device, n * sizeof(T), cudaMemcpyDeviceToHost, stream), "resident map");
+}
+
+}  // namespace
+
+ResidentMap::~ResidentMap() {
+  if (scan_temp_) cudaFree(scan_temp_);
+}
+
+void ResidentMap::sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& adam, cudaStream_t stream) {
+  const size_t n = map.size();
+  // A map smaller than what is held was changed behind remove_if(): start over.
+  if (!valid_ || n < count_) invalidate();
+  const size_t from = count_;
+  const gs::GaussianAdam::State& st = adam.state();
+  // Until every array holds n, nothing is resident: a failure half-way leaves the next call to
+  // send everything.
+  valid_ = false;
+  send_tail(&position_, map.positions(), from, n, 3, "positions", stream);
+  send_tail(&log_scale_, map.log_scales(), from, n, 3, "log-scales", stream);
+  send_tail(&rotation_, map.rotations(), from, n, 4, "rotations", stream);
+  send_tail(&colour_, map.colours(), from, n, 3, "colours", stream);
+  send_tail(&confidence_, map.confidences(), from, n, 1, "confidences", stream);
+  send_tail(&opacity_, map.opacities(), from, n, 1, "opacities", stream);
+  send_tail(&type_, map.types(), from, n, 1, "types", stream);
+  const gs::GaussianAdam::Moments* moments[4] = {&st.position, &st.log_scale, &st.rotation, &st.colour};
+  const size_t width[4] = {3, 3, 4, 3};
+  for (int a = 0; a < 4; ++a) {
+    send_tail(&m_[a], moments[a]->m, from, n, width[a], "Adam moments", stream);
+    send_tail(&v_[a], moments[a]->v, from, n, width[a], "Adam moments", stream);
+  }
+  send_tail(&steps_, st.steps, from, n, 1, "Adam steps", stream);
+  // The flags the host sets itself, whole.
+  send_tail(&stable_, map.stable(), 0, n, 1, "stable flags", stream);
+  send_tail(&object_id_, map.object_ids_per_gaussian(), 0, n, 1, "object IDs", stream);
+  count_ = n;
+  valid_ = true;
+}
+
+void ResidentMap::remove_if(const std::vector<uint8_t>& remove, cudaStream_t stream) {
+  if (!valid_) return;
+  if (remove.size() < count_) {  // not a mask over what is held
+    invalidate();
+    return;
+  }
+  const size_t n = count_;
+  if (n == 0) return;
+  const size_t kept = n - static_cast<size_t>(std::count_if(remove.begin(), remove.begin() + n,
+                                                             [](uint8_t r) { return r != 0; }));
+  if (kept == n) return;
+  valid_ = false;  // until compacted
+  uint8_t* mask = remove_.ensure(n, "removal mask");
+  check(cudaMemcpyAsync(mask, remove.data(), n, cudaMemcpyHostToDevice, stream), "removal mask");
+  uint32_t* keep = keep_.ensure(n + 1, "removal mask");
+  uint32_t* offsets = offsets_.ensure(n + 1, "removal mask");
+  launch_keep_flags(n, mask, keep, stream);
+  check(cudaGetLastError(), "removal mask");
+  check(exclusive_scan(n, keep, offsets, &scan_temp_, &scan_temp_bytes_, stream), "removal mask");
+  uint32_t* scratch = scratch_.ensure(4 * n, "removal scratch");
+  // Each array compacted into the scratch and copied back.
+  auto words = [&](void* array, size_t width) {
+    uint32_t* a = static_cast<uint32_t*>(array);
+    launch_compact(n, width, mask, offsets, a, scratch, stream);
+    check(cudaGetLastError(), "removal");
+    check(cudaMemcpyAsync(a, scratch, kept * width * 4, cudaMemcpyDeviceToDevice, stream), "removal");
+  };
+  auto bytes = [&](uint8_t* a) {
+    uint8_t* s = reinterpret_cast<uint8_t*>(scratch);
+    launch_compact(n, 1, mask, offsets, a, s, stream);
+    check(cudaGetLastError(), "removal");
+    check(cudaMemcpyAsync(a, s, kept, cudaMemcpyDeviceToDevice, stream), "removal");
+  };
+  words(position_.get(), 3);
+  words(log_scale_.get(), 3);
+  words(rotation_.get(), 4);
+  words(colour_.get(), 3);
+  words(confidence_.get(), 1);
+  words(opacity_.get(), 1);
+  const size_t width[4] = {3, 3, 4, 3};
+  for (int a = 0; a < 4; ++a) {
+    words(m_[a].get(), width[a]);
+    words(v_[a].get(), width[a]);
+  }
+  words(steps_.get(), 1);
+  words(object_id_.get(), 1);
+  bytes(stable_.get());
+  bytes(type_.get());
+  count_ = kept;
+  valid_ = true;
+}
+
+void ResidentMap::download_trained(gs::GaussianMap* map, cudaStream_t stream) const {
+  const size_t n = count_;
+  if (!valid_ || map->size() != n) throw std::logic_error("resident map: the host map is not the one held");
+  fetch(&map->positions(), position_.get(), 3 * n, stream);
+  fetch(&map->log_scales(), log_scale_.get(), 3 * n, stream);
+  fetch(&map->rotations(), rotation_.get(), 4 * n, stream);
+  fetch(&map->colours(), colour_.get(), 3 * n, stream);
+  fetch(&map->confidences(), confidence_.get(), n, stream);
+}
+
+void ResidentMap::download_optimiser(gs::GaussianAdam* adam, cudaStream_t stream) const {
+  const size_t n = count_;
+  gs::GaussianAdam::State& st = adam->mutable_state();
+  if (!valid_ || st.steps.size() < n) throw std::logic_error("resident map: the optimiser state is not the one held");
+  // The first n Gaussians' (those appended since keep the host's: zero, never stepped).
+  auto prefix = [&](std::vector<float>* host, const float* device, size_t width) {
+    if (host->size() < width * n) throw std::logic_error("resident map: Adam moments not sized for the map");
+    if (n) check(cudaMemcpyAsync(host->data(), device, width * n * sizeof(float), cudaMemcpyDeviceToHost, stream),
+                 "optimiser state");
+  };
+  gs::GaussianAdam::Moments* moments[4] = {&st.position, &st.log_scale, &st.rotation, &st.colour};
+  const size_t width[4] = {3, 3, 4, 3};
+  for (int a = 0; a < 4; ++a) {
+    prefix(&moments[a]->m, m_[a].get(), width[a]);
+    prefix(&moments[a]->v, v_[a].get(), width[a]);
+  }
+  if (n) check(cudaMemcpyAsync(st.steps.data(), steps_.get(), n * sizeof(uint32_t), cudaMemcpyDeviceToHost, stream),
+               "optimiser state");
+}
+
+ResidentMap::HostCopy ResidentMap::download_all(cudaStream_t stream) const {
+  HostCopy h;
+  const size_t n = valid_ ? count_ : 0;
+  fetch(&h.position, position_.get(), 3 * n, stream);
+  fetch(&h.log_scale, log_scale_.get(), 3 * n, stream);
+  fetch(&h.rotation, rotation_.get(), 4 * n, stream);
+  fetch(&h.colour, colour_.get(), 3 * n, stream);
+  fetch(&h.confidence, confidence_.get(), n, stream);
+  fetch(&h.opacity, opacity_.get(), n, stream);
+  const size_t width[4] = {3, 3, 4, 3};
+  for (int a = 0; a < 4; ++a) {
+    fetch(&h.m[a], m_[a].get(), width[a] * n, stream);
+    fetch(&h.v[a], v_[a].get(), width[a] * n, stream);
+  }
+  fetch(&h.steps, steps_.get(), n, stream);
+  fetch(&h.object_id, object_id_.get(), n, stream);
+  fetch(&h.stable, stable_.get(), n, stream);
+  fetch(&h.type, type_.get(), n, stream);
+  check(cudaStreamSynchronize(stream), "resident map");
+  return h;
+}
+
+DeviceTrainable ResidentMap::trainable() {
+  DeviceTrainable t;
+  t.count = count_;
+  t.position = position_.get();
+  t.log_scale = log_scale_.get();
+  t.rotation = rotation_.get();
+  t.colour = colour_.get();
+  t.confidence = confidence_.get();
+  t.stable = stable_.get();
+  for (int a = 0; a < 4; ++a) {
+    t.m[a] = m_[a].get();
+    t.v[a] = v_[a].get();
+  }
+  t.steps = steps_.get();
+  return t;
+}
+
+DeviceGaussians ResidentMap::gaussians() const {
+  DeviceGaussians g;
+  g.count = count_;
+  g.position = position_.get();
+  g.log_scale = log_scale_.get();
+  g.rotation = rotation_.get();
+  g.opacity = opacity_.get();
+  g.colour = colour_.get();
+  g.object_id = object_id_.get();
+  g.type = type_.get();
+  return g;
+}
+
+size_t ResidentMap::bytes() const {
+  size_t total = position_.bytes() + log_scale_.bytes() + rotation_.bytes() + colour_.bytes() + confidence_.bytes() +
+                 opacity_.bytes() + steps_.bytes() + object_id_.bytes() + stable_.bytes() + type_.bytes();
+  for (int a = 0; a < 4; ++a) total += m_[a].bytes() + v_[a].bytes();
+  return total + remove_.bytes() + keep_.bytes() + offsets_.bytes() + scratch_.bytes() + scan_temp_bytes_;
+}
+
+}  // namespace dqo::cuda::detail

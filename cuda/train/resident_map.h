@@ -1,0 +1,104 @@
+#pragma once
+// The trainable map and its optimiser state kept on the device from one training batch to the
+// next (host side, plain C++ with the CUDA runtime). Before, every batch moved them both ways:
+// about 170 bytes per Gaussian up and 150 down, 0.4 GB a keyframe at 1.3 M Gaussians, more than
+// the 50 iterations took on the GPU. Now a batch sends only what the host changed and brings back
+// only what the host reads:
+//   up:   the Gaussians appended since the last batch (all their arrays), and the two per-Gaussian
+//         flags the host sets itself (stable, object ID: 5 bytes per Gaussian);
+//   down: the trained attributes (position, log-scale, rotation, colour, confidence: 56 bytes);
+//         the optimiser state stays on the device until asked for (download_optimiser()).
+// The host may append Gaussians and change those two flags freely; it removes Gaussians through
+// remove_if() with GaussianMap::remove_if's mask (the device compacts its arrays the same way);
+// anything else that changes the map (a loaded one) calls invalidate(), and the next sync_up()
+// sends everything.
+
+#include <cuda_runtime.h>
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "../common/device_buffer.h"
+#include "../raster/raster_cuda.h"
+#include "dqo_map/gaussians/adam.h"
+#include "dqo_map/gaussians/gaussian_map.h"
+#include "train_cuda.h"
+
+namespace dqo::cuda::detail {
+
+// A device array whose contents survive growth (capacity grows by half again, so that a map that
+// grows a little per keyframe does not reallocate every time).
+template <typename T>
+class GrowingBuffer {
+ public:
+  T* get() const { return buf_.get(); }
+  size_t bytes() const { return buf_.bytes(); }
+  // Room for n elements, the first `keep` kept.
+  T* reserve(size_t n, size_t keep, const char* what, cudaStream_t stream) {
+    if (n <= buf_.capacity() && buf_.get()) return buf_.get();
+    DeviceBuffer<T> bigger;
+    bigger.ensure(std::max({n, buf_.capacity() + buf_.capacity() / 2, size_t(1024)}), what);
+    if (keep > 0)
+      check(cudaMemcpyAsync(bigger.get(), buf_.get(), keep * sizeof(T), cudaMemcpyDeviceToDevice, stream), what);
+    buf_.swap(bigger);  // the old array is freed after the copy (cudaFree waits for the device)
+    return buf_.get();
+  }
+
+ private:
+  DeviceBuffer<T> buf_;
+};
+
+class ResidentMap {
+ public:
+  // Brings the device copy in step with the host's `map` and `adam` (adam sized for the map).
+  void sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& adam, cudaStream_t stream);
+  // The host removed the Gaussians with remove[i] != 0 (a mask over its map as it was: the
+  // resident Gaussians first, then any appended since the last sync_up()).
+  void remove_if(const std::vector<uint8_t>& remove, cudaStream_t stream);
+  void invalidate() { valid_ = false; count_ = 0; }
+
+  // The trained attributes into `map` (of count() Gaussians); asynchronous: the caller waits on
+  // the stream before reading them.
+  void download_trained(gs::GaussianMap* map, cudaStream_t stream) const;
+  // The optimiser state of the count() Gaussians held into the first count() of `adam` (sized for
+  // at least as many; those appended since keep theirs); asynchronous likewise.
+  void download_optimiser(gs::GaussianAdam* adam, cudaStream_t stream) const;
+  // Every array as it is on the device (waits for the stream), for tests.
+  struct HostCopy {
+    std::vector<float> position, log_scale, rotation, colour, confidence, opacity;
+    std::vector<float> m[4], v[4];
+    std::vector<uint32_t> steps, object_id;
+    std::vector<uint8_t> stable, type;
+  };
+  HostCopy download_all(cudaStream_t stream) const;
+
+  bool valid() const { return valid_; }
+  size_t count() const { return count_; }
+  DeviceTrainable trainable();
+  DeviceGaussians gaussians() const;
+  size_t bytes() const;
+
+ private:
+  bool valid_ = false;
+  size_t count_ = 0;
+  GrowingBuffer<float> position_, log_scale_, rotation_, colour_, confidence_, opacity_;
+  GrowingBuffer<float> m_[4], v_[4];  // position, log-scale, rotation, colour
+  GrowingBuffer<uint32_t> steps_, object_id_;
+  GrowingBuffer<uint8_t> stable_, type_;
+  // remove_if()'s scratch: the mask, keep flags, their scan and a compacted copy.
+  DeviceBuffer<uint8_t> remove_;
+  DeviceBuffer<uint32_t> keep_, offsets_;
+  DeviceBuffer<uint32_t> scratch_;
+  void* scan_temp_ = nullptr;
+  size_t scan_temp_bytes_ = 0;
+
+ public:
+  ResidentMap() = default;
+  ResidentMap(const ResidentMap&) = delete;
+  ResidentMap& operator=(const ResidentMap&) = delete;
+  ~ResidentMap();
+};
+
+}  // namespace dqo::cuda::detail

@@ -1,0 +1,137 @@
+// The training engine's resident map (cuda/train/resident_map.h) against the host's own
+// bookkeeping (skipped without a GPU): a map and an optimiser state with random contents go
+// through rounds of what the trainer does between batches — removals (GaussianMap::remove_if and
+// GaussianAdam::remove_if on the host, remove_if on the device with the same mask), appends,
+// new stable flags and object IDs — and after each sync_up() every device array equals the
+// host's, bit for bit.
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+
+#include "../../cuda/train/resident_map.h"
+#include "../gaussians/raster_test_util.h"
+#include "dqo_map/cuda/device_info.h"
+
+namespace dqo::cuda {
+namespace {
+
+using gs::testing::uniform;
+
+gs::GaussianInit random_gaussian(std::mt19937_64& rng) {
+  gs::GaussianInit g;
+  g.position = Eigen::Vector3f(uniform(rng, -3, 3), uniform(rng, -3, 3), uniform(rng, 0, 5));
+  g.log_scale = Eigen::Vector3f(uniform(rng, -5, -2), uniform(rng, -5, -2), uniform(rng, -5, -2));
+  g.rotation = Eigen::Vector4f(uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1), uniform(rng, -1, 1));
+  g.colour = Eigen::Vector3f(uniform(rng, 0, 1), uniform(rng, 0, 1), uniform(rng, 0, 1));
+  g.object_id = static_cast<uint32_t>(rng() % 4);
+  g.type = rng() % 5 == 0 ? gs::GaussianType::kTransparent : gs::GaussianType::kOpaque;
+  return g;
+}
+
+// Random optimiser state for Gaussians [from, n) (the host's appends start at zero; random values
+// show that the device takes the host's, whatever they are).
+void randomise_state(gs::GaussianMap* map, gs::GaussianAdam* adam, size_t from, std::mt19937_64& rng) {
+  adam->resize_for(*map);
+  gs::GaussianAdam::State& st = adam->mutable_state();
+  for (gs::GaussianAdam::Moments* m : {&st.position, &st.log_scale, &st.rotation, &st.colour}) {
+    const size_t width = m->m.size() / map->size();
+    for (size_t k = from * width; k < m->m.size(); ++k) {
+      m->m[k] = static_cast<float>(uniform(rng, -1, 1));
+      m->v[k] = static_cast<float>(uniform(rng, 0, 1));
+    }
+  }
+  for (size_t i = from; i < map->size(); ++i) {
+    st.steps[i] = static_cast<uint32_t>(rng() % 1000);
+    map->confidences()[i] = static_cast<float>(st.steps[i]);
+  }
+}
+
+template <typename T>
+bool bits_equal(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+void expect_same(const detail::ResidentMap& resident, const gs::GaussianMap& map, const gs::GaussianAdam& adam,
+                 cudaStream_t stream, const std::string& where) {
+  ASSERT_TRUE(resident.valid()) << where;
+  ASSERT_EQ(resident.count(), map.size()) << where;
+  const detail::ResidentMap::HostCopy d = resident.download_all(stream);
+  EXPECT_TRUE(bits_equal(d.position, map.positions())) << where;
+  EXPECT_TRUE(bits_equal(d.log_scale, map.log_scales())) << where;
+  EXPECT_TRUE(bits_equal(d.rotation, map.rotations())) << where;
+  EXPECT_TRUE(bits_equal(d.colour, map.colours())) << where;
+  EXPECT_TRUE(bits_equal(d.confidence, map.confidences())) << where;
+  EXPECT_TRUE(bits_equal(d.opacity, map.opacities())) << where;
+  EXPECT_TRUE(bits_equal(d.object_id, map.object_ids_per_gaussian())) << where;
+  EXPECT_TRUE(bits_equal(d.stable, map.stable())) << where;
+  EXPECT_TRUE(bits_equal(d.type, map.types())) << where;
+  const gs::GaussianAdam::State& st = adam.state();
+  const gs::GaussianAdam::Moments* m[4] = {&st.position, &st.log_scale, &st.rotation, &st.colour};
+  for (int a = 0; a < 4; ++a) {
+    EXPECT_TRUE(bits_equal(d.m[a], m[a]->m)) << where << ", first moments of attribute " << a;
+    EXPECT_TRUE(bits_equal(d.v[a], m[a]->v)) << where << ", second moments of attribute " << a;
+  }
+  EXPECT_TRUE(bits_equal(d.steps, st.steps)) << where;
+}
+
+TEST(ResidentMap, FollowsTheHostsRemovalsAppendsAndFlags) {
+  if (!gpu_available()) GTEST_SKIP() << "no GPU";
+  cudaStream_t stream = nullptr;
+  ASSERT_EQ(cudaStreamCreate(&stream), cudaSuccess);
+  for (uint64_t seed : {1u, 2u, 3u}) {
+    std::mt19937_64 rng(seed);
+    gs::GaussianMap map;
+    gs::GaussianAdam adam;
+    for (int i = 0; i < 5000; ++i) map.add(random_gaussian(rng));
+    randomise_state(&map, &adam, 0, rng);
+    detail::ResidentMap resident;
+    resident.sync_up(map, adam, stream);
+    expect_same(resident, map, adam, stream, "seed " + std::to_string(seed) + ", first upload");
+    for (int round = 0; round < 6; ++round) {
+      const std::string where = "seed " + std::to_string(seed) + ", round " + std::to_string(round);
+      // Round 2 appends before it removes (the relabelling moves Gaussians so): the mask then
+      // also covers Gaussians the device has not seen.
+      const bool append_first = round == 2;
+      const size_t before = map.size();  // all on the device
+      if (append_first)
+        for (int i = 0; i < 300; ++i) map.add(random_gaussian(rng));
+      std::vector<uint8_t> remove(map.size(), 0);
+      const double rate = round == 4 ? 0.0 : 0.05 + 0.1 * round;  // round 4 removes nothing
+      for (uint8_t& r : remove) r = uniform(rng, 0, 1) < rate;
+      adam.resize_for(map);
+      map.remove_if(remove);
+      adam.remove_if(remove);
+      resident.remove_if(remove, stream);
+      if (!append_first)
+        for (int i = 0; i < 200 + 100 * round; ++i) map.add(random_gaussian(rng));
+      // The device holds the survivors of its `before` Gaussians; the rest are the host's new ones.
+      size_t held = 0;
+      for (size_t i = 0; i < before; ++i) held += remove[i] ? 0 : 1;
+      randomise_state(&map, &adam, held, rng);
+      for (size_t i = 0; i < map.size(); ++i) map.stable()[i] = rng() % 3 == 0;
+      map.relabel(1, 3);  // an object merged into another
+      resident.sync_up(map, adam, stream);
+      expect_same(resident, map, adam, stream, where);
+      EXPECT_NE(map.size(), before) << where;
+    }
+    // A map changed behind its back (smaller than what it holds): everything goes up again.
+    gs::GaussianMap smaller = map.subset({0, 5, 7, 11});
+    gs::GaussianAdam fresh;
+    randomise_state(&smaller, &fresh, 0, rng);
+    resident.sync_up(smaller, fresh, stream);
+    expect_same(resident, smaller, fresh, stream, "seed " + std::to_string(seed) + ", smaller map");
+    // After invalidate(), a map of the same size is sent whole.
+    gs::GaussianMap other;
+    for (size_t i = 0; i < smaller.size(); ++i) other.add(random_gaussian(rng));
+    randomise_state(&other, &fresh, 0, rng);
+    resident.invalidate();
+    resident.sync_up(other, fresh, stream);
+    expect_same(resident, other, fresh, stream, "seed " + std::to_string(seed) + ", replaced map");
+  }
+  cudaStreamDestroy(stream);
+}
+
+}  // namespace
+}  // namespace dqo::cuda
