@@ -6,12 +6,14 @@
 #include "dqo_map/cuda/cuda_rasteriser.h"
 
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
 #include "dqo_map/gaussians/detail/cpu_rasteriser.h"
 #include "dqo_map/gaussians/gaussian_map.h"
+#include "../train/resident_map.h"
 #include "raster_pipeline.h"
 
 namespace dqo::cuda {
@@ -30,6 +32,9 @@ struct CudaRenderState final : gs::RenderState {
 
 class CudaRasteriser final : public gs::Rasteriser {
  public:
+  // shared: the resident map of the backend's training engine (null: this rasteriser alone).
+  explicit CudaRasteriser(std::shared_ptr<detail::ResidentMap> shared = nullptr) : shared_(std::move(shared)) {}
+
   void forward(const gs::GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
                const gs::RenderSettings& settings, gs::RenderOutput* out,
                std::unique_ptr<gs::RenderState>* state) override {
@@ -52,7 +57,13 @@ class CudaRasteriser final : public gs::Rasteriser {
     const size_t pixels = static_cast<size_t>(camera.width) * camera.height;
     pipe_.mark(0);
     detail::DeviceGaussians g = gaussians_;
-    if (!same_gaussians || uploaded_ != n) {
+    // The engine's copy where it shows this map (trained there, nothing sent); else the map goes
+    // up, or stays up where the caller vouches that its Gaussians have not changed.
+    const bool resident = shared_ && shared_->shows(map);
+    if (resident) {
+      shared_->wait();
+      g = shared_->gaussians();
+    } else if (!same_gaussians || uploaded_ != n || from_resident_) {
       uploaded_ = 0;
       g.position = upload(&position_, map.positions(), "positions", stream);
       g.log_scale = upload(&log_scale_, map.log_scales(), "log-scales", stream);
@@ -60,10 +71,13 @@ class CudaRasteriser final : public gs::Rasteriser {
       g.opacity = upload(&opacity_, map.opacities(), "opacities", stream);
       g.colour = upload(&colour_, map.colours(), "colours", stream);
     }
+    from_resident_ = resident;
     g.count = n;
-    g.object_id = upload(&object_id_, map.object_ids_per_gaussian(), "object IDs", stream);
-    g.type = upload(&type_, map.types(), "types", stream);
-    uploaded_ = n;
+    if (!resident) {  // the resident IDs and types are the map's (shows() checks its revision)
+      g.object_id = upload(&object_id_, map.object_ids_per_gaussian(), "object IDs", stream);
+      g.type = upload(&type_, map.types(), "types", stream);
+    }
+    uploaded_ = resident ? 0 : n;
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
     pipe_.forward(g, cam, settings, state != nullptr);
     const detail::ForwardImages& img = pipe_.images();
@@ -77,7 +91,7 @@ class CudaRasteriser final : public gs::Rasteriser {
     pipe_.mark(5);
     check(cudaStreamSynchronize(stream), "compositing");
     timings_ = ForwardTimings{pipe_.ms_between(0, 1), pipe_.project_ms(), pipe_.bin_ms(), pipe_.composite_ms(),
-                              pipe_.ms_between(4, 5), 0.0, pipe_.pairs()};
+                              pipe_.ms_between(4, 5), 0.0, pipe_.pairs(), resident};
     gaussians_ = g;
     n_ = n;
     if (state) {
@@ -114,16 +128,21 @@ class CudaRasteriser final : public gs::Rasteriser {
     const detail::DeviceAttributeGradients d = gradients_.get(n);
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
     pipe_.backward(gaussians_, cam, go, d);
-    if (grad_map->position.size() != 3 * n) grad_map->resize_for(map);
-    // All five down, one wait, then added (MapGradients accumulates).
+    // All five (or the colour's alone) down, one wait, then added (MapGradients accumulates).
+    const int first = grad_map->colour_only ? 4 : 0;
+    if (grad_map->colour_only) {
+      if (grad_map->colour.size() != 3 * n) grad_map->colour.assign(3 * n, 0.f);
+    } else if (grad_map->position.size() != 3 * n) {
+      grad_map->resize_for(map);
+    }
     std::vector<float> host[5];
     const std::pair<const float*, size_t> blocks[] = {
         {d.position, 3 * n}, {d.log_scale, 3 * n}, {d.rotation, 4 * n}, {d.opacity, n}, {d.colour, 3 * n}};
     std::vector<float>* dst[5] = {&grad_map->position, &grad_map->log_scale, &grad_map->rotation,
                                   &grad_map->opacity, &grad_map->colour};
-    for (int b = 0; b < 5; ++b) download(&host[b], blocks[b].first, blocks[b].second, stream);
+    for (int b = first; b < 5; ++b) download(&host[b], blocks[b].first, blocks[b].second, stream);
     check(cudaStreamSynchronize(stream), "gradients");
-    for (int b = 0; b < 5; ++b)
+    for (int b = first; b < 5; ++b)
       for (size_t k = 0; k < host[b].size(); ++k) (*dst[b])[k] += host[b][k];
     timings_.backward_ms = pipe_.backward_ms();
   }
@@ -134,6 +153,8 @@ class CudaRasteriser final : public gs::Rasteriser {
   DeviceBuffer<uint32_t> object_id_;
   DeviceBuffer<uint8_t> type_;
   ForwardTimings timings_;
+  std::shared_ptr<detail::ResidentMap> shared_;
+  bool from_resident_ = false;  // the latest forward() rendered the shared copy
   // The latest forward pass, for backward().
   uint64_t generation_ = 0;
   size_t n_ = 0;
@@ -155,5 +176,12 @@ std::unique_ptr<gs::Rasteriser> make_cuda_rasteriser() {
   require_device();
   return std::make_unique<CudaRasteriser>();
 }
+
+namespace detail {
+std::unique_ptr<gs::Rasteriser> make_cuda_rasteriser_sharing(std::shared_ptr<ResidentMap> resident) {
+  require_device();
+  return std::make_unique<CudaRasteriser>(std::move(resident));
+}
+}  // namespace detail
 
 }  // namespace dqo::cuda

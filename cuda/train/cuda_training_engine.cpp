@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <map>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -33,6 +34,8 @@ struct CachedView {
 
 class CudaTrainingEngine final : public gs::TrainingEngine {
  public:
+  explicit CudaTrainingEngine(std::shared_ptr<detail::ResidentMap> resident) : resident_(std::move(resident)) {}
+
   std::vector<double> run(const std::vector<gs::TrainingView>& views, const std::vector<gs::TrainingStep>& steps,
                           const gs::TrainingLoss& loss, gs::GaussianMap* map, gs::GaussianAdam* adam) override {
     std::vector<double> losses(steps.size(), 0.0);
@@ -47,22 +50,30 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     try {
       return run_resident(views, steps, loss, map, adam);
     } catch (...) {
-      resident_.invalidate();  // the device's copy may be half-trained: the next batch sends all
+      resident_->invalidate();  // the device's copy may be half-trained: the next batch sends all
       throw;
     }
   }
 
   void map_removed(const std::vector<uint8_t>& remove) override {
     try {
-      resident_.remove_if(remove, pipe_.stream());
+      resident_->remove_if(remove, pipe_.stream());
     } catch (const std::exception&) {
-      resident_.invalidate();  // the next batch sends the host's map
+      resident_->invalidate();  // the next batch sends the host's map
     }
   }
-  void map_replaced() override { resident_.invalidate(); }
+  void map_replaced() override { resident_->invalidate(); }
+  void sync(const gs::GaussianMap& map, const gs::GaussianAdam& adam) override {
+    if (adam.size() != map.size()) return;
+    try {
+      resident_->sync_up(map, adam, pipe_.stream());
+    } catch (const std::exception&) {
+      resident_->invalidate();  // the next batch sends everything
+    }
+  }
   void fetch_optimiser_state(gs::GaussianAdam* adam) override {
-    if (!resident_.valid() || adam->size() < resident_.count()) return;
-    resident_.download_optimiser(adam, pipe_.stream());
+    if (!resident_->valid() || adam->size() < resident_->count()) return;
+    resident_->download_optimiser(adam, pipe_.stream());
     check(cudaStreamSynchronize(pipe_.stream()), "optimiser state");
   }
 
@@ -70,7 +81,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     size_t total = 0;
     for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto* b : {&v_rgb_, &v_depth_, &v_ins_}) total += b->bytes();
-    return total + resident_.bytes() + gradients_.bytes() + pipe_.bytes() + sums_.bytes();
+    return total + resident_->bytes() + gradients_.bytes() + pipe_.bytes() + sums_.bytes();
   }
 
  private:
@@ -81,9 +92,9 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     const size_t n = map->size();
     const cudaStream_t stream = pipe_.stream();
     // What the host appended or flagged since the last batch, up.
-    resident_.sync_up(*map, *adam, stream);
-    const detail::DeviceTrainable t = resident_.trainable();
-    const detail::DeviceGaussians g = resident_.gaussians();
+    resident_->sync_up(*map, *adam, stream);
+    const detail::DeviceTrainable t = resident_->trainable();
+    const detail::DeviceGaussians g = resident_->gaussians();
     const detail::DeviceAttributeGradients grad = gradients_.get(n);
     double* sums = sums_.ensure(3 * steps.size(), "loss sums");
     check(cudaMemsetAsync(sums, 0, 3 * steps.size() * sizeof(double), stream), "loss sums");
@@ -133,7 +144,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     // attributes and the loss sums down (the optimiser state stays).
     std::vector<double> host_sums;
     check(cudaStreamSynchronize(stream), "training batch");
-    resident_.download_trained(map, stream);
+    resident_->download_trained(map, stream);
     download(&host_sums, sums, 3 * steps.size(), stream);
     check(cudaStreamSynchronize(stream), "training batch");
     for (size_t k = 0; k < steps.size(); ++k) {
@@ -177,7 +188,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
 
   detail::RasterPipeline pipe_;
   std::map<uint64_t, std::unique_ptr<CachedView>> cache_;
-  detail::ResidentMap resident_;
+  std::shared_ptr<detail::ResidentMap> resident_;  // shared with the backend's rasteriser
   detail::GradientBuffers gradients_;
   DeviceBuffer<float> v_rgb_, v_depth_, v_ins_;
   DeviceBuffer<double> sums_;
@@ -187,7 +198,14 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
 
 std::unique_ptr<gs::TrainingEngine> make_cuda_training_engine() {
   require_device();
-  return std::make_unique<CudaTrainingEngine>();
+  return std::make_unique<CudaTrainingEngine>(std::make_shared<detail::ResidentMap>());
 }
+
+namespace detail {
+std::unique_ptr<gs::TrainingEngine> make_cuda_training_engine_sharing(std::shared_ptr<ResidentMap> resident) {
+  require_device();
+  return std::make_unique<CudaTrainingEngine>(std::move(resident));
+}
+}  // namespace detail
 
 }  // namespace dqo::cuda

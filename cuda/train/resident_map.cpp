@@ -65,6 +65,13 @@ void ResidentMap::sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& ad
   send_tail(&object_id_, map.object_ids_per_gaussian(), 0, n, 1, "object IDs", stream);
   count_ = n;
   valid_ = true;
+  synced_map_ = &map;
+  synced_revision_ = map.revision();
+  stream_ = stream;
+}
+
+void ResidentMap::wait() const {
+  if (stream_) check(cudaStreamSynchronize(stream_), "resident map");
 }
 
 void ResidentMap::remove_if(const std::vector<uint8_t>& remove, cudaStream_t stream) {
@@ -79,6 +86,8 @@ void ResidentMap::remove_if(const std::vector<uint8_t>& remove, cudaStream_t str
                                                              [](uint8_t r) { return r != 0; }));
   if (kept == n) return;
   valid_ = false;  // until compacted
+  synced_map_ = nullptr;  // in step again with the next sync_up()
+  stream_ = stream;
   uint8_t* mask = remove_.ensure(n, "removal mask");
   check(cudaMemcpyAsync(mask, remove.data(), n, cudaMemcpyHostToDevice, stream), "removal mask");
   uint32_t* keep = keep_.ensure(n + 1, "removal mask");

@@ -18,12 +18,15 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "../common/device_buffer.h"
 #include "../raster/raster_cuda.h"
 #include "dqo_map/gaussians/adam.h"
 #include "dqo_map/gaussians/gaussian_map.h"
+#include "dqo_map/gaussians/rasteriser.h"
+#include "dqo_map/gaussians/training_engine.h"
 #include "train_cuda.h"
 
 namespace dqo::cuda::detail {
@@ -57,7 +60,20 @@ class ResidentMap {
   // The host removed the Gaussians with remove[i] != 0 (a mask over its map as it was: the
   // resident Gaussians first, then any appended since the last sync_up()).
   void remove_if(const std::vector<uint8_t>& remove, cudaStream_t stream);
-  void invalidate() { valid_ = false; count_ = 0; }
+  void invalidate() {
+    valid_ = false;
+    count_ = 0;
+    synced_map_ = nullptr;
+  }
+  // Whether the device copy shows `map` as it is: it is the map of the latest sync_up(), which
+  // has not added, removed or relabelled Gaussians since (GaussianMap::revision()). Its renders
+  // may then use gaussians() after wait().
+  bool shows(const gs::GaussianMap& map) const {
+    return valid_ && synced_map_ == &map && synced_revision_ == map.revision() && count_ == map.size();
+  }
+  // Waits for the device work on its arrays (sync_up()'s copies, remove_if()'s compaction), for
+  // a reader on another stream.
+  void wait() const;
 
   // The trained attributes into `map` (of count() Gaussians); asynchronous: the caller waits on
   // the stream before reading them.
@@ -83,6 +99,9 @@ class ResidentMap {
  private:
   bool valid_ = false;
   size_t count_ = 0;
+  const gs::GaussianMap* synced_map_ = nullptr;  // the map and revision of the latest sync_up()
+  uint64_t synced_revision_ = 0;
+  cudaStream_t stream_ = nullptr;  // of the latest call that wrote the arrays
   GrowingBuffer<float> position_, log_scale_, rotation_, colour_, confidence_, opacity_;
   GrowingBuffer<float> m_[4], v_[4];  // position, log-scale, rotation, colour
   GrowingBuffer<uint32_t> steps_, object_id_;
@@ -100,5 +119,11 @@ class ResidentMap {
   ResidentMap& operator=(const ResidentMap&) = delete;
   ~ResidentMap();
 };
+
+// The rasteriser and the training engine of one backend (cuda_backend.cpp), sharing `resident`:
+// the rasteriser renders the map the engine holds without sending it, while the engine's copy
+// shows the map it is given (ResidentMap::shows()).
+std::unique_ptr<gs::Rasteriser> make_cuda_rasteriser_sharing(std::shared_ptr<ResidentMap> resident);
+std::unique_ptr<gs::TrainingEngine> make_cuda_training_engine_sharing(std::shared_ptr<ResidentMap> resident);
 
 }  // namespace dqo::cuda::detail

@@ -1,10 +1,16 @@
 #include "dqo_map/gaussians/gaussian_map.h"
 
 #include <algorithm>
+#include <atomic>
 #include <stdexcept>
 #include <string>
 
 namespace dqo::gs {
+
+uint64_t MapRevision::next() {
+  static std::atomic<uint64_t> counter{0};
+  return counter.fetch_add(1, std::memory_order_relaxed) + 1;
+}
 
 namespace {
 
@@ -52,6 +58,7 @@ GaussianMap GaussianMap::subset(const std::vector<uint32_t>& indices) const {
 }
 
 size_t GaussianMap::add(const GaussianInit& g) {
+  revision_.bump();
   const size_t index = size();
   position_.insert(position_.end(), g.position.data(), g.position.data() + 3);
   log_scale_.insert(log_scale_.end(), g.log_scale.data(), g.log_scale.data() + 3);
@@ -97,6 +104,7 @@ size_t GaussianMap::remove_if(const std::vector<uint8_t>& remove) {
   compact(birth_keyframe_, 1, remove);
   compact(type_, 1, remove);
   const size_t removed = before - size();
+  if (removed) revision_.bump();
   return removed;
 }
 
@@ -124,6 +132,7 @@ size_t GaussianMap::relabel(uint32_t from, uint32_t to) {
       ++n;
     }
   }
+  if (n) revision_.bump();
   return n;
 }
 

@@ -47,7 +47,16 @@ RenderSettings GaussianTrainer::settings(uint32_t ins_object, bool for_render) c
 
 void GaussianTrainer::render(const PinholeCamera& camera, const SE3& T_wc, RenderOutput* out,
                              uint32_t ins_object) {
+  sync_engine();
   rasteriser_->forward(map_, camera, T_wc.inverse(), settings(ins_object, true), out, nullptr);
+}
+
+void GaussianTrainer::sync_engine() {
+  // Only where the engine runs the iterations: the host then never changes the attributes behind
+  // its back (the host loop would, and the engine's copy would show a stale map).
+  if (!uses_engine() || map_.empty()) return;
+  sync_state();
+  engine_->sync(map_, adam_);
 }
 
 void GaussianTrainer::sync_state() {
@@ -104,6 +113,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
           RenderOutput out;
           std::unique_ptr<RenderState> state;
           t = std::chrono::steady_clock::now();
+          sync_engine();
           rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0, false), &out, &state);
           const size_t relabelled = relabelled_;
           review_gaussians(kf, *state);
@@ -273,7 +283,7 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
     probe.rgb[3 * p + 2] = kf.labels.data[p] != 0 ? 1.f : 0.f;
   }
   MapGradients g;
-  g.resize_for(map_);
+  g.colour_only = true;  // a GPU backend then brings back 3 of the 14 values per Gaussian
   const SE3 T_cw = kf.T_wc.inverse();
   rasteriser_->backward(map_, kf.camera, T_cw, settings(0, false), state, probe, &g);
 
@@ -379,6 +389,7 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
       if (as_rendered) {
         rasteriser_->forward_same_gaussians(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
       } else {
+        sync_engine();
         rasteriser_->forward(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
         as_rendered = true;
       }
@@ -608,6 +619,7 @@ void GaussianTrainer::prune(KeyframeReport* report) {
     const StoredKeyframe& newest = window_.back();
     RenderOutput out;
     std::unique_ptr<RenderState> state;
+    sync_engine();
     rasteriser_->forward(map_, newest.camera, newest.T_wc.inverse(), settings(0, false), &out,
                          &state);
     review_gaussians(newest, *state, true);

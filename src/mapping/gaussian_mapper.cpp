@@ -1,8 +1,7 @@
 #include "dqo_map/mapping/gaussian_mapper.h"
 
 #ifdef DQO_MAPPING_CUDA
-#include "dqo_map/cuda/cuda_rasteriser.h"
-#include "dqo_map/cuda/cuda_training_engine.h"
+#include "dqo_map/cuda/cuda_backend.h"
 #include "dqo_map/cuda/device_info.h"
 #endif
 
@@ -55,8 +54,9 @@ TrainerBackend make_backend(const GaussianMapperParams& p) {
   TrainerBackend b;
 #ifdef DQO_MAPPING_CUDA
   if (use_gpu(p.backend)) {
-    b.rasteriser = cuda::make_cuda_rasteriser();
-    b.engine = cuda::make_cuda_training_engine();
+    cuda::CudaBackend gpu = cuda::make_cuda_backend();  // rasteriser and engine share the map
+    b.rasteriser = std::move(gpu.rasteriser);
+    b.engine = std::move(gpu.engine);
     return b;
   }
 #else

@@ -36,6 +36,7 @@
 #include "dqo_map/gaussians/trainer.h"
 #ifdef DQO_BENCH_CUDA
 #include "dqo_map/cuda/cuda_rasteriser.h"
+#include "dqo_map/cuda/cuda_backend.h"
 #include "dqo_map/cuda/cuda_training_engine.h"
 #endif
 #include <fstream>
@@ -149,9 +150,10 @@ int bench_keyframes(const GaussianMap& map, const PinholeCamera& cam, const SE3&
   std::unique_ptr<TrainingEngine> engine;
   if (backend == "cuda") {
 #ifdef DQO_BENCH_CUDA
-    rasteriser = cuda::make_cuda_rasteriser();
+    cuda::CudaBackend gpu = cuda::make_cuda_backend();  // as the mapping stage makes it
+    rasteriser = std::move(gpu.rasteriser);
+    engine = std::move(gpu.engine);
     truth_renderer = cuda::make_cuda_rasteriser();
-    engine = cuda::make_cuda_training_engine();
 #else
     std::fprintf(stderr, "bench_raster: this build has no CUDA backend\n");
     return 1;

@@ -140,5 +140,38 @@ TEST(GaussianMap, BytesUsed) {
   EXPECT_EQ(map.bytes_used(), 1000u * 70u);
 }
 
+// The revision stamp that tells a device copy whether it still shows this map: new on every add,
+// removal and relabelling that changes something, different for every copy, unchanged by reads
+// and by no-op edits.
+TEST(GaussianMap, RevisionChangesWithEveryStructuralEdit) {
+  GaussianMap map;
+  const uint64_t empty = map.revision();
+  GaussianInit g;
+  g.object_id = 2;
+  map.add(g);
+  map.add(g);
+  const uint64_t two = map.revision();
+  EXPECT_NE(two, empty);
+  EXPECT_EQ(map.size(), 2u);
+  EXPECT_EQ(map.revision(), two) << "reads change nothing";
+  EXPECT_EQ(map.relabel(5, 6), 0u);
+  EXPECT_EQ(map.remove_if({0, 0}), 0u);
+  EXPECT_EQ(map.revision(), two) << "edits that change nothing keep it";
+  EXPECT_EQ(map.relabel(2, 3), 2u);
+  const uint64_t relabelled = map.revision();
+  EXPECT_NE(relabelled, two);
+  EXPECT_EQ(map.remove_if({1, 0}), 1u);
+  EXPECT_NE(map.revision(), relabelled);
+  // Copies and assignments are other maps, even with the same contents.
+  GaussianMap copy = map;
+  EXPECT_NE(copy.revision(), map.revision());
+  GaussianMap moved = std::move(copy);
+  EXPECT_NE(moved.revision(), map.revision());
+  const uint64_t before = map.revision();
+  map = moved;
+  EXPECT_NE(map.revision(), before);
+  EXPECT_NE(map.revision(), moved.revision());
+}
+
 }  // namespace
 }  // namespace dqo::gs

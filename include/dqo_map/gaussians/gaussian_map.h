@@ -32,6 +32,27 @@ struct GaussianInit {
   uint32_t birth_keyframe = 0;
 };
 
+// A stamp that takes a new value, unique in the process, whenever a map is created, copied or
+// assigned, or adds, removes or relabels Gaussians: a GPU backend that holds a copy of a map on
+// the device renders from it only while the map still carries the stamp it copied (cuda/train/
+// resident_map.h). Attribute values changed through the non-const accessors do not change it:
+// that is the trainer's business, which keeps its engine told (gaussians/training_engine.h).
+class MapRevision {
+ public:
+  MapRevision() : value_(next()) {}
+  MapRevision(const MapRevision&) : value_(next()) {}
+  MapRevision& operator=(const MapRevision&) {
+    value_ = next();
+    return *this;
+  }
+  void bump() { value_ = next(); }
+  uint64_t value() const { return value_; }
+
+ private:
+  static uint64_t next();
+  uint64_t value_;
+};
+
 class GaussianMap {
  public:
   size_t size() const { return object_id_.size(); }
@@ -64,6 +85,9 @@ class GaussianMap {
   // Bytes held by the attribute arrays (capacity, not size).
   size_t bytes_used() const;
 
+  // See MapRevision.
+  uint64_t revision() const { return revision_.value(); }
+
   // Flat attribute arrays, index i at [i * width, (i + 1) * width).
   std::vector<float>& positions() { return position_; }            // 3 per Gaussian
   std::vector<float>& log_scales() { return log_scale_; }          // 3
@@ -88,6 +112,7 @@ class GaussianMap {
   std::vector<float> position_, log_scale_, rotation_, opacity_, colour_, confidence_;
   std::vector<uint32_t> object_id_, birth_keyframe_;
   std::vector<uint8_t> type_, stable_;
+  MapRevision revision_;
 };
 
 }  // namespace dqo::gs

@@ -58,6 +58,9 @@ struct OutputGradients {
 // quaternion). Accumulated (+=) by backward(); left empty, backward() sizes it (zero-filled) first.
 struct MapGradients {
   std::vector<float> position, log_scale, rotation, opacity, colour;
+  // The caller reads `colour` alone (the trainer's review): a backend may then leave the other
+  // arrays as they are (a GPU backend does, and saves bringing them back).
+  bool colour_only = false;
   void resize_for(const GaussianMap& map);  // zero-filled, sized like the map
 };
 

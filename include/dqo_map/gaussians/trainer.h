@@ -258,6 +258,8 @@ class GaussianTrainer {
   template <typename Step>
   bool with_memory_retry(Step step, KeyframeReport* report);
   void sync_state();
+  // Where the engine holds the map: brings its copy in step, so that the next renders use it.
+  void sync_engine();
 
   Params params_;
   std::unique_ptr<Rasteriser> rasteriser_;

@@ -62,6 +62,13 @@ class TrainingEngine {
   // optimiser state restarts from `adam` as last fetched.
   virtual std::vector<double> run(const std::vector<TrainingView>& views, const std::vector<TrainingStep>& steps,
                                   const TrainingLoss& loss, GaussianMap* map, GaussianAdam* adam) = 0;
+  // Brings what it holds in step with `map` and `adam` (sized for the map) now rather than at the
+  // next batch: a backend whose rasteriser shares the engine's copy (cuda/cuda_backend.h) then
+  // renders `map` without sending it. Never throws; a failure only costs that saving.
+  virtual void sync(const GaussianMap& map, const GaussianAdam& adam) {
+    (void)map;
+    (void)adam;
+  }
   virtual void map_removed(const std::vector<uint8_t>& remove) { (void)remove; }
   virtual void map_replaced() {}
   // Writes the optimiser state it holds into *adam (sized for the map); nothing if it holds none.
