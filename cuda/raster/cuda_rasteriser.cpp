@@ -125,6 +125,8 @@ class CudaRasteriser final : public gs::Rasteriser {
     go.depth = upload_or_null(&v_depth_, grad_out.depth, pixels);
     go.alpha = upload_or_null(&v_alpha_, grad_out.alpha, pixels);
     go.ins = upload_or_null(&v_ins_, grad_out.ins, pixels);
+    if (go.ins && settings.ins_labels)
+      throw std::invalid_argument("CUDA rasteriser: no gradient of a per-label instance opacity");
     const detail::DeviceAttributeGradients d = gradients_.get(n);
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
     pipe_.backward(gaussians_, cam, go, d);

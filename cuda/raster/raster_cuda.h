@@ -63,6 +63,7 @@ struct ForwardSettings {
   bool normalise_depth = false;
   float gap_abs = 0.02f, gap_rel = 0.03f;
   uint32_t ins_object = 0;
+  const uint32_t* ins_labels = nullptr;  // [P] on the device: per-label `ins` (RenderSettings::ins_labels)
   float background[3] = {0.f, 0.f, 0.f};
 };
 
@@ -99,7 +100,8 @@ struct ForwardImages {
 };
 
 // Stage 1: splats[i], rects[i] and tile_count[i] (0: culled) for every Gaussian.
-void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t ins_object,
+// ins_per_label: every object's opaque Gaussians count for `ins` (ForwardSettings::ins_labels).
+void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t ins_object, bool ins_per_label,
                     DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, cudaStream_t stream);
 // Stage 2: one (tile << 32 | depth bits, index) pair per Gaussian and tile it touches, written at
 // offsets[i] (the exclusive scan of tile_count), then (after the sort) each tile's range.

@@ -28,6 +28,7 @@ __global__ void __launch_bounds__(kThreads)
   gs::PixelAccum<float> acc = gs::pixel_accum_start<float>();
   gs::SurfaceAccum<float> surface = gs::surface_accum_start<float>();
   float ins = 0.f, best_weight = 0.f;
+  const uint32_t ins_label = inside && settings.ins_labels ? settings.ins_labels[y * width + x] : 0u;
   uint32_t best_id = 0;
   bool done = !inside;
   uint32_t n_contrib = 0;
@@ -53,7 +54,7 @@ __global__ void __launch_bounds__(kThreads)
       const uint32_t position = static_cast<uint32_t>(start + j + 1);
       if (settings.surface_depth)
         gs::surface_step(alpha, s.depth, acc.transmittance, settings.gap_abs, settings.gap_rel, position, &surface);
-      if (s.counts_for_ins) ins += alpha;
+      if (s.counts_for_ins && (!settings.ins_labels || s.object_id == ins_label)) ins += alpha;
       if (weight > best_weight) {
         best_weight = weight;
         best_id = s.object_id;

@@ -32,7 +32,7 @@ float RasterPipeline::ms_between(int a, int b) const {
 size_t RasterPipeline::bytes() const {
   return splats_.bytes() + rects_.bytes() + tile_count_.bytes() + offsets_.bytes() + values_.bytes() +
          sorted_ids_.bytes() + keys_.bytes() + sorted_keys_.bytes() + ranges_.bytes() + rgb_.bytes() + depth_.bytes() +
-         alpha_.bytes() + ins_.bytes() + dominant_.bytes() + t_final_.bytes() + depth_raw_.bytes() +
+         alpha_.bytes() + ins_.bytes() + dominant_.bytes() + labels_.bytes() + t_final_.bytes() + depth_raw_.bytes() +
          n_contrib_.bytes() + surface_.bytes() + grad2d_.bytes() + scan_temp_bytes_ + sort_temp_bytes_;
 }
 
@@ -50,7 +50,7 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   TileRect* rects = rects_.ensure(n, "tile rectangles");
   uint32_t* tile_count = tile_count_.ensure(n + 1, "tile counts");
   check(cudaMemsetAsync(tile_count, 0, (n + 1) * sizeof(uint32_t), stream_), "tile counts");
-  launch_project(g, cam, settings.ins_object, splats, rects, tile_count, stream_);
+  launch_project(g, cam, settings.ins_object, settings.ins_labels != nullptr, splats, rects, tile_count, stream_);
   check(cudaGetLastError(), "projection");
   mark(2);
   // 2. binning: the pair count decides the sort's buffers (the one wait on the host here).
@@ -84,6 +84,12 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   fs.gap_abs = settings.surface_gap;
   fs.gap_rel = settings.surface_gap_relative;
   fs.ins_object = settings.ins_object;
+  if (settings.ins_labels) {
+    uint32_t* labels = labels_.ensure(pixels, "label image");
+    check(cudaMemcpyAsync(labels, settings.ins_labels, pixels * sizeof(uint32_t), cudaMemcpyHostToDevice, stream_),
+          "label image");
+    fs.ins_labels = labels;
+  }
   for (int c = 0; c < 3; ++c) fs.background[c] = settings.background[c];
   images_.rgb = rgb_.ensure(3 * pixels, "rgb image");
   images_.depth = depth_.ensure(pixels, "depth image");

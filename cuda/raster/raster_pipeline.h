@@ -84,7 +84,7 @@ class RasterPipeline {
   DeviceBuffer<uint64_t> keys_, sorted_keys_;
   DeviceBuffer<uint2> ranges_;
   DeviceBuffer<float> rgb_, depth_, alpha_, ins_;
-  DeviceBuffer<uint32_t> dominant_;
+  DeviceBuffer<uint32_t> dominant_, labels_;
   DeviceBuffer<float> t_final_, depth_raw_;
   DeviceBuffer<uint32_t> n_contrib_;
   DeviceBuffer<gs::SurfaceAccum<float>> surface_;

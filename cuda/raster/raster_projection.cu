@@ -11,7 +11,7 @@ namespace dqo::cuda::detail {
 
 namespace {
 
-__global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uint32_t ins_object,
+__global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uint32_t ins_object, bool ins_per_label,
                                DeviceSplat* splats, TileRect* rects, uint32_t* tile_count) {
   const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i >= g.count) return;
@@ -43,8 +43,9 @@ __global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uin
   s.colour = gs::load_vec3(g.colour + 3 * i);
   s.depth = p.depth;
   s.object_id = g.object_id[i];
-  s.counts_for_ins = ins_object != 0 && g.object_id[i] == ins_object &&
-                     g.type[i] == kOpaqueType;
+  // Per-label instance opacity: every object's OG counts, on the pixels of its label.
+  s.counts_for_ins = g.type[i] == kOpaqueType &&
+                     (ins_per_label ? g.object_id[i] != 0 : ins_object != 0 && g.object_id[i] == ins_object);
   splats[i] = s;
   rects[i] = t;
   // Only the tiles its α ≥ 1/255 ellipse reaches (as the CPU binning: math/alpha.h).
@@ -57,12 +58,13 @@ __global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uin
 
 }  // namespace
 
-void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t ins_object,
+void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t ins_object, bool ins_per_label,
                     DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, cudaStream_t stream) {
   if (g.count == 0) return;
   constexpr int kBlock = 256;
   const unsigned blocks = static_cast<unsigned>((g.count + kBlock - 1) / kBlock);
-  project_kernel<<<blocks, kBlock, 0, stream>>>(g, cam, ins_object, splats, rects, tile_count);
+  project_kernel<<<blocks, kBlock, 0, stream>>>(g, cam, ins_object, ins_per_label, splats, rects,
+                                                      tile_count);
 }
 
 }  // namespace dqo::cuda::detail

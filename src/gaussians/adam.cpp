@@ -3,25 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "compaction.h"
 #include "dqo_map/gaussians/math/adam_step.h"
 
 namespace dqo::gs {
-namespace {
-
-// Removes, in place, the `width` values of every item i with remove[i] != 0.
-template <typename T>
-void compact(std::vector<T>* v, const std::vector<uint8_t>& remove, size_t width) {
-  size_t out = 0;
-  for (size_t i = 0; i < remove.size(); ++i) {
-    if (remove[i]) continue;
-    if (out != i) std::copy_n(v->begin() + i * width, width, v->begin() + out * width);
-    ++out;
-  }
-  v->resize(out * width);
-}
-
-}  // namespace
-
 void GaussianAdam::resize_for(const GaussianMap& map) {
   const size_t n = map.size();
   auto grow = [n](Moments* mo, size_t width) {
@@ -37,16 +22,18 @@ void GaussianAdam::resize_for(const GaussianMap& map) {
 }
 
 void GaussianAdam::remove_if(const std::vector<uint8_t>& remove) {
-  auto shrink = [&remove](Moments* mo, size_t width) {
-    compact(&mo->m, remove, width);
-    compact(&mo->v, remove, width);
+  detail::Compaction c(remove);
+  auto shrink = [&c](Moments* mo, size_t width) {
+    c.add(&mo->m, width);
+    c.add(&mo->v, width);
   };
   shrink(&s_.position, 3);
   shrink(&s_.log_scale, 3);
   shrink(&s_.rotation, 4);
   shrink(&s_.opacity, 1);
   shrink(&s_.colour, 3);
-  compact(&s_.steps, remove, 1);
+  c.add(&s_.steps, 1);
+  c.run();
 }
 
 void GaussianAdam::reset() {

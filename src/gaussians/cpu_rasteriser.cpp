@@ -131,6 +131,8 @@ class CpuRasteriser final : public Rasteriser {
     g_out.rgb = gradient_or_null(grad_out.rgb, 3 * pixels, "rgb");
     g_out.depth = gradient_or_null(grad_out.depth, pixels, "depth");
     g_out.ins = gradient_or_null(grad_out.ins, pixels, "ins");
+    if (g_out.ins && settings.ins_labels)
+      throw std::invalid_argument("cpu rasteriser: no gradient of a per-label instance opacity");
     g_out.alpha = gradient_or_null(grad_out.alpha, pixels, "alpha");
     const size_t n = map.size();
     if (grad_map->position.empty() && grad_map->opacity.empty()) grad_map->resize_for(map);

@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "compaction.h"
+
 namespace dqo::gs {
 
 uint64_t MapRevision::next() {
@@ -13,18 +15,6 @@ uint64_t MapRevision::next() {
 }
 
 namespace {
-
-// Keeps the entries of one attribute array (width values per Gaussian) whose Gaussian survives.
-template <typename V>
-void compact(std::vector<V>& values, size_t width, const std::vector<uint8_t>& remove) {
-  size_t out = 0;
-  for (size_t i = 0; i < remove.size(); ++i) {
-    if (remove[i]) continue;
-    if (out != i) std::copy_n(values.begin() + i * width, width, values.begin() + out * width);
-    ++out;
-  }
-  values.resize(out * width);
-}
 
 template <typename V>
 size_t capacity_bytes(const std::vector<V>& v) {
@@ -93,16 +83,18 @@ size_t GaussianMap::remove_if(const std::vector<uint8_t>& remove) {
                                 std::to_string(remove.size()) + " entries for " +
                                 std::to_string(size()) + " Gaussians");
   const size_t before = size();
-  compact(position_, 3, remove);
-  compact(log_scale_, 3, remove);
-  compact(rotation_, 4, remove);
-  compact(colour_, 3, remove);
-  compact(opacity_, 1, remove);
-  compact(confidence_, 1, remove);
-  compact(stable_, 1, remove);
-  compact(object_id_, 1, remove);
-  compact(birth_keyframe_, 1, remove);
-  compact(type_, 1, remove);
+  detail::Compaction c(remove);
+  c.add(&position_, 3);
+  c.add(&log_scale_, 3);
+  c.add(&rotation_, 4);
+  c.add(&colour_, 3);
+  c.add(&opacity_, 1);
+  c.add(&confidence_, 1);
+  c.add(&stable_, 1);
+  c.add(&object_id_, 1);
+  c.add(&birth_keyframe_, 1);
+  c.add(&type_, 1);
+  c.run();
   const size_t removed = before - size();
   if (removed) revision_.bump();
   return removed;

@@ -17,6 +17,7 @@ template <typename S>
 struct TileForward {
   PixelAccum<S> acc[kTilePixels];
   S ins[kTilePixels];
+  uint32_t ins_label[kTilePixels];  // settings.ins_labels of the tile's pixels
   S best_weight[kTilePixels];
   uint32_t best_id[kTilePixels];
   uint32_t n_contrib[kTilePixels];
@@ -42,6 +43,11 @@ void composite_tile(const RenderSettings& settings, size_t tile, const ImageBuff
     tf->n_contrib[p] = 0;
     tf->surface[p] = surface_accum_start<S>();
   }
+  const uint32_t* labels = settings.ins_labels;
+  if (labels)
+    for (int y = ty0; y <= ty1; ++y)
+      for (int x = tx0; x <= tx1; ++x)
+        tf->ins_label[(y - ty0) * kTileSize + (x - tx0)] = labels[static_cast<size_t>(y) * width + x];
   const bool surface = settings.surface_depth;
   const S gap_abs = S(settings.surface_gap), gap_rel = S(settings.surface_gap_relative);
   uint32_t open[kTileSize];  // pixels not finished by the early stop
@@ -72,7 +78,7 @@ void composite_tile(const RenderSettings& settings, size_t tile, const ImageBuff
         if (surface)
           surface_step(alpha, s.depth, tf->acc[p].transmittance, gap_abs, gap_rel, position,
                        &tf->surface[p]);
-        if (s.counts_for_ins) tf->ins[p] += alpha;
+        if (s.counts_for_ins && (!labels || s.object_id == tf->ins_label[p])) tf->ins[p] += alpha;
         if (weight > tf->best_weight[p]) {
           tf->best_weight[p] = weight;
           tf->best_id[p] = s.object_id;

@@ -52,8 +52,10 @@ bool project_one(const GaussianArrays<S>& g, size_t i, const CameraView<S>& cam,
   s.depth = p.depth;
   s.min_power = -std::log(S(255) * opacity) - S(1e-3);
   s.object_id = g.object_id[i];
-  s.counts_for_ins = settings.ins_object != 0 && g.object_id[i] == settings.ins_object &&
-                     g.type[i] == static_cast<uint8_t>(GaussianType::kOpaque);
+  // Per-label instance opacity: every object's OG counts, on the pixels of its label.
+  s.counts_for_ins = g.type[i] == static_cast<uint8_t>(GaussianType::kOpaque) &&
+                     (settings.ins_labels ? g.object_id[i] != 0
+                                          : settings.ins_object != 0 && g.object_id[i] == settings.ins_object);
   s.y0 = static_cast<int16_t>(by0);
   s.y1 = static_cast<int16_t>(by1);
   out->tile_rect[i] = tiles;

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "compaction.h"
 #include "raster_internal.h"
 
 namespace dqo::gs {
@@ -88,12 +89,15 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   kf.key = next_key_++;
   if (kf.labels.empty()) kf.labels = LabelImage(kf.camera.width, kf.camera.height, 1, 0u);
   {
-    std::vector<uint32_t> ids(kf.labels.data.begin(), kf.labels.data.end());
-    std::sort(ids.begin(), ids.end());
-    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
-    for (const uint32_t id : ids) {
-      if (id != 0) kf.objects.push_back(id);
+    // The labels present, ascending. A pass over the runs of equal labels (a keyframe holds a few
+    // objects, each over many pixels) rather than sorting every pixel's (7 ms at 1200×680).
+    uint32_t run = 0;
+    for (const uint32_t id : kf.labels.data) {
+      if (id == run) continue;
+      run = id;
+      if (id != 0 && std::find(kf.objects.begin(), kf.objects.end(), id) == kf.objects.end()) kf.objects.push_back(id);
     }
+    std::sort(kf.objects.begin(), kf.objects.end());
   }
 
   // 1-2. Render what the map has, update visibility, add where it is missing or wrong.
@@ -114,18 +118,19 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
           std::unique_ptr<RenderState> state;
           t = std::chrono::steady_clock::now();
           sync_engine();
-          rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), settings(0, false), &out, &state);
+          // The same render gives the masks' instance opacities (each pixel's own object's).
+          rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), mask_settings(kf), &out, &state);
           const size_t relabelled = relabelled_;
           review_gaussians(kf, *state);
-          // Relabelling moves Gaussians to the end of the map: then the renders for the masks
-          // upload it again.
-          const bool as_rendered = relabelled_ == relabelled;
+          // Relabelling changes which Gaussians count for an object: then the instance opacities
+          // are rendered again.
+          const bool ins_current = relabelled_ == relabelled;
           report.review_ms = ms_since(t);
           t = std::chrono::steady_clock::now();
           // Into a scratch report first: a pass that fails half-way must not count its Gaussians
           // twice (what it added stays; the retry only adds where the map is still missing).
           attempt = report;
-          add_gaussians(kf, &out, &attempt, as_rendered);
+          add_gaussians(kf, &out, &attempt, ins_current);
           report = attempt;
           report.add_ms = ms_since(t);
         },
@@ -364,8 +369,14 @@ void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
   std::copy(usefulness.begin(), usefulness.end(), usefulness_.end() - usefulness.size());
 }
 
+RenderSettings GaussianTrainer::mask_settings(const StoredKeyframe& kf) const {
+  RenderSettings s = settings(0, false);
+  if (!kf.objects.empty()) s.ins_labels = kf.labels.data.data();
+  return s;
+}
+
 void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput* out,
-                                    KeyframeReport* report, bool as_rendered) {
+                                    KeyframeReport* report, bool ins_current) {
   const int w = kf.camera.width, h = kf.camera.height;
   const size_t n = static_cast<size_t>(w) * h;
   std::vector<uint8_t> missing(n, 1), error(n, 0);  // error: 1 geometry, 2 colour only
@@ -382,21 +393,18 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
       for (int c = 0; c < 3; ++c) dc += std::abs(out->rgb[3 * p + c] - kf.rgb.data[3 * p + c]);
       if (dc / 3.f > params_.colour_error) error[p] = 2;
     }
-    // Mask_geo also holds the pixels of object k where k's instance opacity is low.
-    const SE3 T_cw = kf.T_wc.inverse();
-    for (const uint32_t id : kf.objects) {
-      RenderOutput ins;
-      if (as_rendered) {
-        rasteriser_->forward_same_gaussians(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
-      } else {
+    // Mask_geo also holds the pixels of object k where k's instance opacity is low (one render
+    // gives every object's on its own pixels: RenderSettings::ins_labels).
+    if (!kf.objects.empty()) {
+      RenderOutput rendered;
+      const std::vector<float>* ins = &out->ins;
+      if (!ins_current) {
         sync_engine();
-        rasteriser_->forward(map_, kf.camera, T_cw, settings(id, false), &ins, nullptr);
-        as_rendered = true;
+        rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), mask_settings(kf), &rendered, nullptr);
+        ins = &rendered.ins;
       }
       for (size_t p = 0; p < n; ++p) {
-        if (kf.labels.data[p] == id && !missing[p] && ins.ins[p] < params_.ins_threshold) {
-          error[p] = 1;
-        }
+        if (kf.labels.data[p] != 0 && !missing[p] && (*ins)[p] < params_.ins_threshold) error[p] = 1;
       }
     }
   }
@@ -656,17 +664,11 @@ size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
   if (removed == 0) return 0;
   if (engine_) engine_->map_removed(remove);
   adam_.remove_if(remove);
-  size_t out = 0;
-  for (size_t i = 0; i < remove.size(); ++i) {
-    if (remove[i]) continue;
-    invisible_count_[out] = invisible_count_[i];
-    relabel_votes_[out] = relabel_votes_[i];
-    usefulness_[out] = usefulness_[i];
-    ++out;
-  }
-  invisible_count_.resize(out);
-  relabel_votes_.resize(out);
-  usefulness_.resize(out);
+  detail::Compaction c(remove);
+  c.add(&invisible_count_, 1);
+  c.add(&relabel_votes_, 1);
+  c.add(&usefulness_, 1);
+  c.run();
   return removed;
 }
 

@@ -94,6 +94,19 @@ TEST(CudaRasteriser, ForwardMatchesTheCpuReference) {
       for (float v : b.alpha) covered += v > 0.5f;
       EXPECT_GT(covered, pixels / 4) << "the scene covers the image";
     }
+    // The masks' per-label instance opacity (each pixel's own object's).
+    std::vector<uint32_t> labels(pixels);
+    for (size_t p = 0; p < pixels; ++p) labels[p] = static_cast<uint32_t>((p % cam.width) / 40 + p / (40 * cam.width)) % 4;
+    gs::RenderSettings per_label;
+    per_label.ins_labels = labels.data();
+    gs::RenderOutput a, b;
+    poison(&a, pixels);
+    gpu->forward(map, cam, T_cw, per_label, &a, nullptr);
+    cpu->forward(map, cam, T_cw, per_label, &b, nullptr);
+    expect_close(a.ins, b.ins, "per-label ins", seed);
+    double total = 0.0;
+    for (float v : b.ins) total += v;
+    EXPECT_GT(total, 10.0) << "seed " << seed;
   }
 }
 

@@ -439,6 +439,46 @@ TEST(Rasteriser, InsCountsOnlyTheObjectsOpaqueGaussians) {
   for (double v : z.ins) EXPECT_EQ(v, 0.0);
 }
 
+// The masks' per-label render (RenderSettings::ins_labels): at each pixel, the instance opacity
+// of the object the pixel is labelled with — the very value a render for that object alone gives
+// there — and 0 on background pixels; no gradient of it.
+TEST(Rasteriser, PerLabelInsIsEachPixelsOwnObjects) {
+  const PinholeCamera cam = testing::make_camera(96, 72, 80.0);
+  const SE3 T_cw = testing::test_pose();
+  const GaussianMap map = random_map(cam, T_cw, 2000, 21);
+  auto r = make_cpu_rasteriser(2);
+  // Labels in vertical bands (objects 0-3), as a detector's masks would cut the image.
+  std::vector<uint32_t> labels(static_cast<size_t>(cam.width) * cam.height);
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) labels[static_cast<size_t>(y) * cam.width + x] = (x / 24 + y / 36) % 4;
+  RenderSettings per_label;
+  per_label.ins_labels = labels.data();
+  RenderOutput all;
+  std::unique_ptr<RenderState> state;
+  r->forward(map, cam, T_cw, per_label, &all, &state);
+  double total = 0.0;
+  for (uint32_t id = 0; id < 4; ++id) {
+    RenderSettings one;
+    one.ins_object = id;
+    RenderOutput single;
+    r->forward(map, cam, T_cw, one, &single, nullptr);
+    for (size_t p = 0; p < labels.size(); ++p) {
+      if (labels[p] != id) continue;
+      ASSERT_EQ(all.ins[p], id == 0 ? 0.f : single.ins[p]) << "object " << id << ", pixel " << p;
+      total += all.ins[p];
+    }
+    EXPECT_EQ(all.rgb, single.rgb) << "the colours do not depend on it";
+  }
+  EXPECT_GT(total, 10.0);
+  OutputGradients go;
+  go.ins.assign(labels.size(), 1.f);
+  MapGradients g;
+  EXPECT_THROW(r->backward(map, cam, T_cw, per_label, *state, go, &g), std::invalid_argument);
+  go.ins.clear();
+  go.rgb.assign(3 * labels.size(), 1.f);
+  EXPECT_NO_THROW(r->backward(map, cam, T_cw, per_label, *state, go, &g)) << "other gradients are fine";
+}
+
 // Object 1, a dense patch in front, hides object 2, a larger patch behind; object 2 shows around.
 TEST(Rasteriser, DominantIdIsTheFrontObject) {
   const PinholeCamera cam = testing::make_camera(80, 60, 80.0);

@@ -33,6 +33,11 @@ struct RenderSettings {
   float surface_gap = 0.02f;           // metres
   float surface_gap_relative = 0.03f;  // of the depth
   uint32_t ins_object = 0;             // object whose instance opacity `ins` is rendered (0: none)
+  // Non-null (width × height labels, row-major, the caller's until forward() returns): `ins` of
+  // each pixel is the instance opacity of the object it is labelled with (0 for label 0), in
+  // place of ins_object's: the masks' test of every object of a keyframe in one render. No
+  // gradient of such an `ins` (backward() refuses one).
+  const uint32_t* ins_labels = nullptr;
   float background[3] = {0.f, 0.f, 0.f};
   float near = 0.01f;  // metres: Gaussians nearer than this are culled
 };
@@ -43,7 +48,8 @@ struct RenderOutput {
   std::vector<float> rgb;    // 3 per pixel
   std::vector<float> depth;  // Σ T_i α_i z_i (or normalised, or the surface's: RenderSettings)
   std::vector<float> alpha;  // accumulated alpha 1 − T_final
-  std::vector<float> ins;    // Σ α_i over the OG Gaussians of settings.ins_object (METHOD §4)
+  std::vector<float> ins;    // Σ α_i over the OG Gaussians of settings.ins_object (METHOD §4),
+                             // or of the pixel's label (settings.ins_labels)
   std::vector<uint32_t> dominant_id;  // object ID of the Gaussian of largest T_i α_i (0: none)
 };
 

@@ -232,11 +232,12 @@ class GaussianTrainer {
   void review_gaussians(const StoredKeyframe& kf, const RenderState& state,
                         bool usefulness_only = false);
   void relabel_gaussians(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id);
-  // out: the render from the keyframe; null when the map is empty (everything is missing).
-  // as_rendered: the map is as the rasteriser's latest forward() had it (the renders for the
-  // masks need not upload it again).
+  // The masks' render: settings(0, false) with each pixel's own object's instance opacity.
+  RenderSettings mask_settings(const StoredKeyframe& kf) const;
+  // out: the render from the keyframe with mask_settings(); null when the map is empty
+  // (everything is missing). ins_current: its `ins` is still the map's (no relabelling since).
   void add_gaussians(const StoredKeyframe& kf, const RenderOutput* out, KeyframeReport* report,
-                     bool as_rendered = false);
+                     bool ins_current = true);
   // `stride`: the pixel spacing the new Gaussian stands for (its in-plane size).
   void add_gaussian_at(const StoredKeyframe& kf, int u, int v, int stride, bool transparent);
   double iterate(const StoredKeyframe& kf);

@@ -1,0 +1,53 @@
+#pragma once
+// Removal of the removed Gaussians' entries from per-Gaussian arrays, in place and in order (the
+// map's arrays, the optimiser's moments), every array at once on threads of its own: at a million
+// Gaussians the map and its optimiser state are about 200 MB to move, 60 ms on one core.
+
+#include <algorithm>
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <thread>
+#include <vector>
+
+namespace dqo::gs::detail {
+
+// Keeps the `width` values of every item i with remove[i] == 0.
+template <typename T>
+void compact(std::vector<T>* values, size_t width, const std::vector<uint8_t>& remove) {
+  size_t out = 0;
+  for (size_t i = 0; i < remove.size(); ++i) {
+    if (remove[i]) continue;
+    if (out != i) std::copy_n(values->begin() + i * width, width, values->begin() + out * width);
+    ++out;
+  }
+  values->resize(out * width);
+}
+
+// Compacts several arrays by one mask: add() each, then run().
+class Compaction {
+ public:
+  explicit Compaction(const std::vector<uint8_t>& remove) : remove_(remove) {}
+  template <typename T>
+  void add(std::vector<T>* values, size_t width) {
+    jobs_.push_back([values, width, this] { compact(values, width, remove_); });
+  }
+  void run() {
+    const size_t threads = std::min<size_t>(jobs_.size(), std::max(1u, std::thread::hardware_concurrency()));
+    std::atomic<size_t> next{0};
+    auto work = [&] {
+      for (size_t k = next.fetch_add(1); k < jobs_.size(); k = next.fetch_add(1)) jobs_[k]();
+    };
+    std::vector<std::thread> pool;
+    for (size_t t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+    for (std::thread& t : pool) t.join();
+    jobs_.clear();
+  }
+
+ private:
+  const std::vector<uint8_t>& remove_;
+  std::vector<std::function<void()>> jobs_;
+};
+
+}  // namespace dqo::gs::detail
