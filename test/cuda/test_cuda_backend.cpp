@@ -9,6 +9,7 @@
 #include <random>
 
 #include "../gaussians/raster_test_util.h"
+#include "keyframe_test_util.h"
 #include "dqo_map/cuda/cuda_backend.h"
 #include "dqo_map/cuda/cuda_rasteriser.h"
 #include "dqo_map/cuda/device_info.h"
@@ -23,26 +24,10 @@ constexpr int kWidth = 128, kHeight = 96;
 
 // Keyframe k of a scene of random Gaussians (objects 1 and 2 in front of a background wall).
 gs::TrainingKeyframe keyframe(const gs::GaussianMap& truth, int k) {
-  gs::TrainingKeyframe kf;
-  kf.id = static_cast<uint32_t>(k + 1);
-  kf.camera = gs::testing::make_camera(kWidth, kHeight, 110.0);
-  kf.T_wc = SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.05 * k, Eigen::Vector3d::UnitY())),
-                Eigen::Vector3d(0.1 * k, 0.0, 0.0));
-  gs::RenderSettings s;
-  s.normalise_depth = true;
-  gs::RenderOutput out;
-  gs::make_cpu_rasteriser(0)->forward(truth, kf.camera, kf.T_wc.inverse(), s, &out, nullptr);
-  const size_t pixels = static_cast<size_t>(kWidth) * kHeight;
-  kf.rgb = ImageRgb8(kWidth, kHeight, 3, 0);
-  kf.depth = DepthImage(kWidth, kHeight, 1, 0.f);
-  kf.labels = LabelImage(kWidth, kHeight, 1, 0u);
-  for (size_t p = 0; p < pixels; ++p) {
-    for (int c = 0; c < 3; ++c)
-      kf.rgb.data[3 * p + c] = static_cast<uint8_t>(std::lround(255.f * std::min(1.f, std::max(0.f, out.rgb[3 * p + c]))));
-    kf.depth.data[p] = out.alpha[p] > 0.5f ? out.depth[p] : 0.f;
-    kf.labels.data[p] = out.dominant_id[p];
-  }
-  return kf;
+  const SE3 T_wc(Eigen::Quaterniond(Eigen::AngleAxisd(0.05 * k, Eigen::Vector3d::UnitY())),
+                 Eigen::Vector3d(0.1 * k, 0.0, 0.0));
+  return testing::rendered_keyframe(truth, gs::testing::make_camera(kWidth, kHeight, 110.0), T_wc,
+                                    static_cast<uint32_t>(k + 1));
 }
 
 gs::GaussianMap scene(uint64_t seed) {

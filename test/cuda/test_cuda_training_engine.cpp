@@ -10,6 +10,7 @@
 #include <random>
 
 #include "../gaussians/raster_test_util.h"
+#include "keyframe_test_util.h"
 #include "dqo_map/cuda/cuda_rasteriser.h"
 #include "dqo_map/cuda/cuda_training_engine.h"
 #include "dqo_map/cuda/device_info.h"
@@ -49,26 +50,9 @@ gs::GaussianMap truth_map(uint64_t seed) {
 
 // Keyframe k: the truth rendered from a camera that moves sideways and turns a little.
 gs::TrainingKeyframe keyframe(const gs::GaussianMap& truth, int k) {
-  gs::TrainingKeyframe kf;
-  kf.id = static_cast<uint32_t>(k + 1);
-  kf.camera = camera();
-  kf.T_wc = SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.04 * k, Eigen::Vector3d::UnitY())),
-                Eigen::Vector3d(0.08 * k, 0.02 * k, 0.0));
-  gs::RenderSettings s;
-  s.normalise_depth = true;
-  gs::RenderOutput out;
-  gs::make_cpu_rasteriser(0)->forward(truth, kf.camera, kf.T_wc.inverse(), s, &out, nullptr);
-  const size_t pixels = static_cast<size_t>(kWidth) * kHeight;
-  kf.rgb = ImageRgb8(kWidth, kHeight, 3, 0);
-  kf.depth = DepthImage(kWidth, kHeight, 1, 0.f);
-  kf.labels = LabelImage(kWidth, kHeight, 1, 0u);
-  for (size_t p = 0; p < pixels; ++p) {
-    for (int c = 0; c < 3; ++c)
-      kf.rgb.data[3 * p + c] = static_cast<uint8_t>(std::lround(255.f * std::min(1.f, std::max(0.f, out.rgb[3 * p + c]))));
-    kf.depth.data[p] = out.alpha[p] > 0.5f ? out.depth[p] : 0.f;
-    kf.labels.data[p] = out.dominant_id[p];
-  }
-  return kf;
+  const SE3 T_wc(Eigen::Quaterniond(Eigen::AngleAxisd(0.04 * k, Eigen::Vector3d::UnitY())),
+                 Eigen::Vector3d(0.08 * k, 0.02 * k, 0.0));
+  return testing::rendered_keyframe(truth, camera(), T_wc, static_cast<uint32_t>(k + 1));
 }
 
 gs::GaussianTrainer::Params params(uint64_t seed, int iterations) {
