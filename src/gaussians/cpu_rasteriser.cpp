@@ -135,18 +135,27 @@ class CpuRasteriser final : public Rasteriser {
       throw std::invalid_argument("cpu rasteriser: no gradient of a per-label instance opacity");
     g_out.alpha = gradient_or_null(grad_out.alpha, pixels, "alpha");
     const size_t n = map.size();
-    if (grad_map->position.empty() && grad_map->opacity.empty()) grad_map->resize_for(map);
-    if (grad_map->position.size() != 3 * n || grad_map->log_scale.size() != 3 * n ||
-        grad_map->rotation.size() != 4 * n || grad_map->opacity.size() != n ||
-        grad_map->colour.size() != 3 * n)
+    // Colour only: the other arrays (which the backward pass fills all the same) go to scratch.
+    MapGradients scratch;
+    MapGradients* into = grad_map;
+    if (grad_map->colour_only) {
+      if (grad_map->colour.size() != 3 * n) grad_map->colour.assign(3 * n, 0.f);
+      scratch.resize_for(map);
+      scratch.colour.swap(grad_map->colour);
+      into = &scratch;
+    }
+    if (into->position.empty() && into->opacity.empty()) into->resize_for(map);
+    if (into->position.size() != 3 * n || into->log_scale.size() != 3 * n || into->rotation.size() != 4 * n ||
+        into->opacity.size() != n || into->colour.size() != 3 * n)
       throw std::invalid_argument("cpu rasteriser: MapGradients not sized for the map");
     detail::AttributeGradients<float> g;
-    g.position = grad_map->position.data();
-    g.log_scale = grad_map->log_scale.data();
-    g.rotation = grad_map->rotation.data();
-    g.opacity = grad_map->opacity.data();
-    g.colour = grad_map->colour.data();
+    g.position = into->position.data();
+    g.log_scale = into->log_scale.data();
+    g.rotation = into->rotation.data();
+    g.opacity = into->opacity.data();
+    g.colour = into->colour.data();
     detail::cpu_backward(detail::arrays_of(map), camera, T_cw, settings, threads_, state, g_out, g);
+    if (grad_map->colour_only) grad_map->colour.swap(scratch.colour);
   }
 
  private:

@@ -114,7 +114,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
     with_memory_retry(
         [&] {
           KeyframeReport attempt;
-          RenderOutput out;
+          RenderOutput& out = scratch_.render;
           std::unique_ptr<RenderState> state;
           t = std::chrono::steady_clock::now();
           sync_engine();
@@ -280,15 +280,16 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   const bool check_usefulness = params_.max_gaussians > 0;
   if (!check_visibility && !check_labels && !check_usefulness) return;
   const size_t n_pixels = kf.labels.data.size();
-  OutputGradients probe;
+  OutputGradients& probe = scratch_.probe;
   probe.rgb.resize(3 * n_pixels);
   for (size_t p = 0; p < n_pixels; ++p) {
     probe.rgb[3 * p] = 1.f;
     probe.rgb[3 * p + 1] = kf.labels.data[p] == 0 ? 1.f : 0.f;
     probe.rgb[3 * p + 2] = kf.labels.data[p] != 0 ? 1.f : 0.f;
   }
-  MapGradients g;
+  MapGradients& g = scratch_.review;
   g.colour_only = true;  // a GPU backend then brings back 3 of the 14 values per Gaussian
+  g.colour.assign(3 * map_.size(), 0.f);  // backward() adds
   const SE3 T_cw = kf.T_wc.inverse();
   rasteriser_->backward(map_, kf.camera, T_cw, settings(0, false), state, probe, &g);
 

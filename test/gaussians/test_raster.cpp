@@ -479,6 +479,35 @@ TEST(Rasteriser, PerLabelInsIsEachPixelsOwnObjects) {
   EXPECT_NO_THROW(r->backward(map, cam, T_cw, per_label, *state, go, &g)) << "other gradients are fine";
 }
 
+// MapGradients::colour_only: the same colour gradients as a full backward pass (added to what the
+// array held), the other arrays left alone.
+TEST(Rasteriser, ColourOnlyBackwardGivesTheColourGradients) {
+  const PinholeCamera cam = testing::make_camera(80, 60, 70.0);
+  const SE3 T_cw = testing::test_pose();
+  const GaussianMap map = random_map(cam, T_cw, 1500, 22);
+  auto r = make_cpu_rasteriser(2);
+  RenderOutput out;
+  std::unique_ptr<RenderState> state;
+  r->forward(map, cam, T_cw, RenderSettings{}, &out, &state);
+  OutputGradients go;
+  std::mt19937_64 rng(22);
+  go.rgb.resize(out.rgb.size());
+  for (float& v : go.rgb) v = static_cast<float>(uniform(rng, -1, 1));
+  MapGradients full, colour;
+  r->backward(map, cam, T_cw, RenderSettings{}, *state, go, &full);
+  colour.colour_only = true;
+  colour.colour.assign(3 * map.size(), 1.f);
+  r->backward(map, cam, T_cw, RenderSettings{}, *state, go, &colour);
+  ASSERT_EQ(colour.colour.size(), full.colour.size());
+  size_t nonzero = 0;
+  for (size_t k = 0; k < full.colour.size(); ++k) {
+    ASSERT_EQ(colour.colour[k], 1.f + full.colour[k]) << k;
+    nonzero += full.colour[k] != 0.f;
+  }
+  EXPECT_GT(nonzero, full.colour.size() / 10);
+  EXPECT_TRUE(colour.position.empty());
+}
+
 // Object 1, a dense patch in front, hides object 2, a larger patch behind; object 2 shows around.
 TEST(Rasteriser, DominantIdIsTheFrontObject) {
   const PinholeCamera cam = testing::make_camera(80, 60, 80.0);

@@ -277,6 +277,13 @@ class GaussianTrainer {
   size_t keyframe_count_ = 0;
   std::mt19937_64 rng_;
   MapGradients grad_, grad_objects_;  // reused across iterations
+  // The once-per-keyframe buffers, kept from keyframe to keyframe: at 1200×680 and a million
+  // Gaussians they are 50 MB, whose fresh pages cost more than filling them.
+  struct Scratch {
+    RenderOutput render;   // the masks' render
+    OutputGradients probe;  // the review's output gradients
+    MapGradients review;    // its colour gradients
+  } scratch_;
 };
 
 }  // namespace dqo::gs
