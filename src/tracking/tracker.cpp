@@ -1,6 +1,8 @@
 // The per-frame pipeline: dense alignment to the previous frame, feature tracking from the best
 // guess available (dense, then the motion model, then PnP against the last keyframe), pose-only
-// refinement fusing both, relocalisation when lost. The map side is in tracker_map.cpp.
+// refinement fusing both, relocalisation when lost; where dense alignment failed or had no
+// reference but the features hold, dense alignment again from their pose (realign()). The map
+// side is in tracker_map.cpp.
 
 #include <algorithm>
 #include <chrono>
@@ -96,7 +98,7 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
     case TrackingState::kOk:
       result = track_frame(&frame, pyramid);
       break;
-      case TrackingState::kLost:
+    case TrackingState::kLost:
       // Relocalisation needs features: with dense alignment alone (use_features false) a lost
       // tracker stays lost, since a pose chained from a guess across the gap would be wrong.
       result = track_lost(&frame, pyramid);
@@ -105,8 +107,9 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
   result.features = features;
   reported_state_ = result.state;
   if (pyramid != nullptr) {
-    const bool dense_ready = result.state == TrackingState::kOk &&
-                             pyramid->valid_points(pyramid->finest_level()) >= kMinInitialDensePoints;
+    const bool dense_ready =
+        result.state == TrackingState::kOk &&
+        pyramid->valid_points(pyramid->finest_level()) >= kMinInitialDensePoints;
     if (!dense_ready && last_dense_ready_) {
       // The chain of dense references breaks here: keep the last good one (realign()).
       std::swap(anchor_pyramid_, last_pyramid_);
@@ -243,7 +246,8 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
     // Neither held: try to relocalise at once rather than drift on the motion model.
     int inliers = 0;
     if (relocalise_frame(frame, &T_wc, &inliers)) {
-      const bool realigned = fuse_realigned(frame, pyramid, &T_wc, &inliers, &dense, nullptr, nullptr);
+      const bool realigned =
+          fuse_realigned(frame, pyramid, &T_wc, &inliers, &dense, nullptr, nullptr);
       QualityEvidence r = evidence_base();
       r.inliers = inliers;
       r.spread = spread_of(*frame);
@@ -305,7 +309,8 @@ TrackResult Tracker::Impl::track_lost(TrackedFrame* frame, const RgbdPyramid* py
   if (!relocalise_frame(frame, &T_wc, &inliers)) return result;
   odometry_valid_ = false;
   DenseResult dense;
-  const bool realigned = fuse_realigned(frame, pyramid, &T_wc, &inliers, &dense, nullptr, nullptr);
+  const bool realigned =
+      fuse_realigned(frame, pyramid, &T_wc, &inliers, &dense, nullptr, nullptr);
   QualityEvidence e = evidence_base();
   e.inliers = inliers;
   e.spread = spread_of(*frame);
