@@ -35,6 +35,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "cpu_clones.h"
 #include "dense_residuals.h"
 #include "dqo_map/tracking/dense_alignment.h"
 
@@ -116,6 +117,7 @@ void zero_tail(dense::ResidualBlock* b, int n, int end) {
 // project; residuals and weights; the 6x6 sums), which the compiler vectorises, or the gathers
 // from the reference images, which stay scalar. Rejected samples keep their slot with weight 0
 // rather than being compacted away, so no phase branches.
+DQO_AVX2_CLONE
 void accumulate(const Level& ref, const Level& cur, const SE3& T_ref_cur, const LoopConstants& k,
                 bool colour, Pass* out) {
   const Eigen::Matrix3f R = T_ref_cur.rotation().cast<float>();

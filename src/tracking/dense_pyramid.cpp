@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 
+#include "cpu_clones.h"
 #include "dqo_map/tracking/dense_alignment.h"
 
 namespace dqo::tracking {
@@ -80,6 +81,7 @@ PinholeCamera half_camera(const PinholeCamera& c) {
 }
 
 // Level 1 straight from the input (level 0 is never aligned by default, so it is not stored).
+DQO_AVX2_CLONE
 void halve_input(const DepthImage& depth, const ImageRgb8* rgb, float max_depth, float inv_f_fine,
                  float k_noise, Level* out) {
   const int w = out->camera.width;
@@ -116,6 +118,7 @@ void halve_input(const DepthImage& depth, const ImageRgb8* rgb, float max_depth,
 }
 
 // Level l + 1 from level l's depth and intensity.
+DQO_AVX2_CLONE
 void halve_level(const Level& fine, bool colour, float inv_f_fine, float k_noise, Level* out) {
   const int w = out->camera.width;
   const int h = out->camera.height;
@@ -142,6 +145,7 @@ void halve_level(const Level& fine, bool colour, float inv_f_fine, float k_noise
 }
 
 // Central-difference gradients of the texels' intensity; zero on the border.
+DQO_AVX2_CLONE
 void compute_gradients(Level* L) {
   const int w = L->camera.width;
   const int h = L->camera.height;
@@ -167,6 +171,7 @@ void compute_gradients(Level* L) {
 // same surface as the centre. Branch-free over plain arrays, so that it vectorises: copysign, not
 // a select, for the orientation, and the square root left to the caller (either would keep the
 // loop scalar).
+DQO_AVX2_CLONE
 void normal_row(const float* __restrict du, const float* __restrict dm, const float* __restrict dd,
                 int w, float ry_up, float ry, float ry_down, float cx, float ifx, float k_noise,
                 float* __restrict nx, float* __restrict ny, float* __restrict nz,
@@ -201,6 +206,7 @@ void normal_row(const float* __restrict du, const float* __restrict dm, const fl
 
 // Points from depth, then normals (see normal_row). Missing points and normals are zeros (see
 // Surfel); the border has no normals (align_dense relies on pixel 0 having none).
+DQO_AVX2_CLONE
 void compute_surfels(Level* L, float k_noise, std::vector<float>* scratch) {
   const PinholeCamera& cam = L->camera;
   const int w = cam.width;
@@ -234,6 +240,7 @@ void compute_surfels(Level* L, float k_noise, std::vector<float>* scratch) {
   }
 }
 
+DQO_AVX2_CLONE
 void gather_samples(const DenseParams& params, bool colour, Level* L) {
   const size_t n_pixels = L->surfels.size();
   const RgbdPyramid::Surfel* s = L->surfels.data();

@@ -93,8 +93,10 @@ class NormalEquations {
  public:
   static constexpr int kLanes = 8;
 
-  // Adds entries [0, n) of the block; n must be a multiple of kLanes (pad with w = 0).
-  void add(const ResidualBlock& b, int n) {
+  // Adds entries [0, n) of the block; n must be a multiple of kLanes (pad with w = 0). Always
+  // inlined, so that it is compiled for its caller's target (accumulate() also has an AVX2 clone,
+  // cpu_clones.h); out of line it ran as SSE2 code, a third of the alignment's time.
+  __attribute__((always_inline)) void add(const ResidualBlock& b, int n) {
     float acc[28][kLanes] = {};
     for (int i = 0; i < n; i += kLanes) {
       for (int l = 0; l < kLanes; ++l) {

@@ -6,6 +6,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "fast_cells.h"
+
 namespace dqo::tracking {
 namespace {
 
@@ -158,36 +160,16 @@ void OrbExtractor::detect_level(int level, std::vector<cv::KeyPoint>* out) {
   const cv::Rect roi(margin, margin, image.cols - 2 * margin, image.rows - 2 * margin);
   if (roi.width <= 2 * kFastRadius || roi.height <= 2 * kFastRadius) return;
 
-  // One FAST pass at the low threshold; per cell the corners that pass the high threshold win,
-  // the others only fill cells that have nothing better (ORB-SLAM2 retries per cell instead).
-  std::vector<cv::KeyPoint> corners;
-  cv::FAST(image(roi), corners, params_.min_fast_threshold, true);
-
+  // Per cell the corners that pass the high threshold, or where there are none those that pass
+  // the low one (fast_cells.h; ORB-SLAM2 retries per cell instead).
   const int cell = std::max(8, params_.grid_cell_px);
-  const int cols = std::max(1, (roi.width + cell - 1) / cell);
-  const int rows = std::max(1, (roi.height + cell - 1) / cell);
-  std::vector<std::vector<cv::KeyPoint>> cells(static_cast<size_t>(cols) * rows);
-  for (cv::KeyPoint& k : corners) {
-    k.pt.x += margin;
-    k.pt.y += margin;
-    if (k.pt.x < kEdge || k.pt.y < kEdge || k.pt.x >= image.cols - kEdge ||
-        k.pt.y >= image.rows - kEdge)
-      continue;
-    const int cx = std::min(cols - 1, static_cast<int>(k.pt.x - margin) / cell);
-    const int cy = std::min(rows - 1, static_cast<int>(k.pt.y - margin) / cell);
-    cells[static_cast<size_t>(cy) * cols + cx].push_back(k);
-  }
+  detect_cell_corners(image, roi, cell, params_.fast_threshold, params_.min_fast_threshold,
+                      &cells_);
   size_t most = 0;
-  for (auto& c : cells) {
-    const bool has_strong = std::any_of(c.begin(), c.end(), [&](const cv::KeyPoint& k) {
-      return k.response >= params_.fast_threshold;
-    });
-    if (has_strong) {
-      c.erase(std::remove_if(c.begin(), c.end(),
-                             [&](const cv::KeyPoint& k) {
-                               return k.response < params_.fast_threshold;
-                             }),
-              c.end());
+  for (auto& c : cells_.cells) {
+    for (cv::KeyPoint& k : c) {
+      k.pt.x += margin;
+      k.pt.y += margin;
     }
     std::sort(c.begin(), c.end(),
               [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
@@ -198,7 +180,7 @@ void OrbExtractor::detect_level(int level, std::vector<cv::KeyPoint>* out) {
   std::vector<cv::KeyPoint> rank;
   for (size_t r = 0; r < most && static_cast<int>(out->size()) < wanted; ++r) {
     rank.clear();
-    for (const auto& c : cells)
+    for (const auto& c : cells_.cells)
       if (r < c.size()) rank.push_back(c[r]);
     const size_t room = static_cast<size_t>(wanted) - out->size();
     if (rank.size() > room) {

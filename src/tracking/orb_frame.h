@@ -17,6 +17,7 @@
 #include "dqo_map/common/image.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/tracking/tracker_params.h"
+#include "fast_cells.h"
 
 namespace dqo::tracking {
 
@@ -114,6 +115,7 @@ class OrbExtractor {
   std::vector<int> features_per_level_;
   std::vector<int> umax_;  // half-width of the orientation patch per row offset
   std::vector<cv::Mat> levels_;
+  CellGrid cells_;  // detect_level's scratch, reused
   cv::Ptr<cv::ORB> describer_;
 };
 

@@ -26,6 +26,7 @@ Section schema(TrackingConfig& c) {
                       {"use_dense", &t.use_dense},
                       {"min_inliers_ok", &t.min_inliers_ok, 0, 100000},
                       {"frames_to_lost", &t.frames_to_lost, 1, 100000},
+                      {"realign_dense", &t.realign_dense},
                   },
                   {
                       Section{"orb",

@@ -1,6 +1,8 @@
 // The per-frame pipeline: dense alignment to the previous frame, feature tracking from the best
 // guess available (dense, then the motion model, then PnP against the last keyframe), pose-only
-// refinement fusing both, relocalisation when lost. The map side is in tracker_map.cpp.
+// refinement fusing both, relocalisation when lost; where dense alignment failed or had no
+// reference but the features hold, dense alignment again from their pose (realign()). The map
+// side is in tracker_map.cpp.
 
 #include <algorithm>
 #include <chrono>
@@ -67,6 +69,11 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
     apply_ba_results();
   }
   submit_local_ba();
+  // The previous frame's pose, after any correction above: the anchor's if it becomes one.
+  const SE3 T_wc_previous = last_ ? last_->T_wc : SE3();
+  const Eigen::Matrix<double, 6, 6> odometry_covariance_previous = odometry_covariance_;
+  const bool odometry_valid_previous = odometry_valid_;
+  const uint64_t last_keyframe_previous = last_keyframe_;
 
   depth_asynchronous_ = input.depth_timestamp.has_value() &&
                         std::abs(*input.depth_timestamp - input.timestamp) >
@@ -94,14 +101,27 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
     case TrackingState::kLost:
       // Relocalisation needs features: with dense alignment alone (use_features false) a lost
       // tracker stays lost, since a pose chained from a guess across the gap would be wrong.
-      result = track_lost(&frame);
+      result = track_lost(&frame, pyramid);
       break;
   }
   result.features = features;
   reported_state_ = result.state;
   if (pyramid != nullptr) {
+    const bool dense_ready =
+        result.state == TrackingState::kOk &&
+        pyramid->valid_points(pyramid->finest_level()) >= kMinInitialDensePoints;
+    if (!dense_ready && last_dense_ready_) {
+      // The chain of dense references breaks here: keep the last good one (realign()).
+      std::swap(anchor_pyramid_, last_pyramid_);
+      anchor_T_wc_ = T_wc_previous;
+      has_anchor_ = true;
+      anchor_odometry_covariance_ = odometry_covariance_previous;
+      anchor_odometry_valid_ = odometry_valid_previous;
+      anchor_keyframe_ = last_keyframe_previous;
+    }
     std::swap(current_pyramid_, last_pyramid_);
     has_last_pyramid_ = true;
+    last_dense_ready_ = dense_ready;
   }
   result.milliseconds =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -138,6 +158,18 @@ QualityEvidence Tracker::Impl::evidence_base() const {
   return e;
 }
 
+namespace {
+
+// A relocalised pose that dense alignment to the anchor confirmed (fuse_realigned).
+void add_dense_evidence(const DenseResult& dense, QualityEvidence* e) {
+  e->dense_tried = true;
+  e->dense_ok = true;
+  e->dense_rms = dense.whitened_rms;
+  e->dense_inlier_ratio = dense.inlier_ratio;
+}
+
+}  // namespace
+
 double Tracker::Impl::spread_of(const TrackedFrame& frame) const {
   std::vector<Eigen::Vector2f> uv;
   for (size_t k = 0; k < frame.map_points.size(); ++k)
@@ -166,11 +198,17 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
   const SE3 T_wc_mm = last_->T_wc * (has_velocity_ ? velocity_ : SE3());
   DenseResult dense;
   const bool dense_tried = pyramid != nullptr && has_last_pyramid_ && last_;
-  const std::optional<DensePrior> prior = align_to_last(pyramid, &dense);
-  const FeatureOutcome features = track_features(frame, prior ? &*prior : nullptr, T_wc_mm);
+  std::optional<DensePrior> prior = align_to_last(pyramid, &dense);
+  FeatureOutcome features = track_features(frame, prior ? &*prior : nullptr, T_wc_mm);
+  // Whether the dense prior is relative to the last frame (and may enter the odometry).
+  bool prior_to_last = prior.has_value();
+  if (!prior && features.ok) {
+    fuse_realigned(frame, pyramid, &features.T_wc, &features.inliers, &dense, &prior,
+                   &prior_to_last);
+  }
 
   QualityEvidence e = evidence_base();
-  e.dense_tried = dense_tried;
+  e.dense_tried = dense_tried || prior.has_value();
   e.dense_ok = prior.has_value();
   e.dense_rms = dense.whitened_rms;
   e.dense_inlier_ratio = dense.inlier_ratio;
@@ -208,10 +246,13 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
     // Neither held: try to relocalise at once rather than drift on the motion model.
     int inliers = 0;
     if (relocalise_frame(frame, &T_wc, &inliers)) {
+      const bool realigned =
+          fuse_realigned(frame, pyramid, &T_wc, &inliers, &dense, nullptr, nullptr);
       QualityEvidence r = evidence_base();
       r.inliers = inliers;
       r.spread = spread_of(*frame);
       r.depth_inliers = depth_inliers_of(*frame);
+      if (realigned) add_dense_evidence(dense, &r);
       const QualityVerdict verdict = assess_quality(r, params_.quality);
       has_velocity_ = false;
       accept(frame, T_wc, inliers, true, false, &result);
@@ -227,8 +268,10 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
   if (verdict.state != TrackingState::kLost) {
     // Dense odometry between keyframes measures the depth's instants where those are not the
     // colour's: left out of bundle adjustment then, like the prior (max_depth_gap_s).
-    if (prior && !depth_asynchronous_) accumulate_odometry(&*prior, T_wc);
-    else odometry_valid_ = false;
+    // (Aligned to the anchor instead, fuse_realigned has set the odometry.)
+    const bool to_anchor = prior && !prior_to_last;
+    if (prior && prior_to_last && !depth_asynchronous_) accumulate_odometry(&*prior, T_wc);
+    else if (!to_anchor) odometry_valid_ = false;
     // Keyframes from poses the RGB-D evidence supports: a monocular pose (depth dropped) adds no
     // points and would anchor the map on its weaker rotation.
     const uint32_t no_depth = quality_reason::kNoDepth | quality_reason::kDenseFailed;
@@ -257,21 +300,25 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
   return result;
 }
 
-TrackResult Tracker::Impl::track_lost(TrackedFrame* frame) {
+TrackResult Tracker::Impl::track_lost(TrackedFrame* frame, const RgbdPyramid* pyramid) {
   TrackResult result;
   result.state = TrackingState::kLost;
   result.quality.reasons = quality_reason::kRelocalising;
   SE3 T_wc;
   int inliers = 0;
   if (!relocalise_frame(frame, &T_wc, &inliers)) return result;
+  odometry_valid_ = false;
+  DenseResult dense;
+  const bool realigned =
+      fuse_realigned(frame, pyramid, &T_wc, &inliers, &dense, nullptr, nullptr);
   QualityEvidence e = evidence_base();
   e.inliers = inliers;
   e.spread = spread_of(*frame);
   e.depth_inliers = depth_inliers_of(*frame);
+  if (realigned) add_dense_evidence(dense, &e);
   const QualityVerdict verdict = assess_quality(e, params_.quality);
   state_ = TrackingState::kOk;
   has_velocity_ = false;
-  odometry_valid_ = false;
   last_relocalised_frame_ = frame->number;
   accept(frame, T_wc, inliers, true, false, &result);
   result.state = verdict.state;
@@ -361,6 +408,63 @@ std::optional<DensePrior> Tracker::Impl::align_to_last(const RgbdPyramid* pyrami
   prior.T_ref_cur = dense.T_ref_cur;
   prior.information = params_.pose.dense_prior_weight * dense.information;
   return prior;
+}
+
+std::optional<DensePrior> Tracker::Impl::realign(const RgbdPyramid* pyramid,
+                                                  const SE3& T_wc_guess, DenseResult* result,
+                                                  bool* to_last) const {
+  // Asynchronous depth: the features alone give the pose where they hold (max_depth_gap_s).
+  if (pyramid == nullptr || !params_.realign_dense || depth_asynchronous_) return std::nullopt;
+  const RgbdPyramid* reference = nullptr;
+  SE3 T_w_ref;
+  if (last_dense_ready_ && has_last_pyramid_ && last_) {
+    reference = &last_pyramid_;
+    T_w_ref = last_->T_wc;
+    *to_last = true;
+  } else if (has_anchor_) {
+    reference = &anchor_pyramid_;
+    T_w_ref = anchor_T_wc_;
+    *to_last = false;
+  } else {
+    return std::nullopt;
+  }
+  *result = align_dense(*reference, *pyramid, T_w_ref.inverse() * T_wc_guess, params_.dense);
+  if (!result->ok) return std::nullopt;
+  DensePrior prior;
+  prior.T_w_ref = T_w_ref;
+  prior.T_ref_cur = result->T_ref_cur;
+  prior.information = params_.pose.dense_prior_weight * result->information;
+  return prior;
+}
+
+bool Tracker::Impl::fuse_realigned(TrackedFrame* frame, const RgbdPyramid* pyramid, SE3* T_wc,
+                                   int* inliers, DenseResult* dense,
+                                   std::optional<DensePrior>* prior_out, bool* to_last_out) {
+  DenseResult again;
+  bool to_last = false;
+  const std::optional<DensePrior> prior = realign(pyramid, *T_wc, &again, &to_last);
+  if (!prior) return false;
+  // The features' matches again, now with the dense pose as a prior: accepted only where the two
+  // agree (the prior's chi-square, as in track_features) and the features still hold.
+  Refinement fused = refine(*frame, *T_wc, &*prior, {});
+  if (fused.pose.prior_chi2 > params_.pose.max_prior_chi2 ||
+      fused.map_inliers < params_.min_inliers_ok)
+    return false;
+  keep_inliers(frame, fused);
+  *T_wc = fused.pose.T_wc;
+  *inliers = fused.map_inliers;
+  *dense = again;
+  if (!to_last) {
+    // The odometry continues from the anchor: Σ_ac = Ad(T_cb) Σ_ab Ad(T_cb)ᵀ + Σ_bc as in
+    // accumulate_odometry, b the anchor; valid if no keyframe came between.
+    const Eigen::Matrix<double, 6, 6> A = adjoint(T_wc->inverse() * anchor_T_wc_);
+    odometry_covariance_ = A * anchor_odometry_covariance_ * A.transpose() +
+                           inverse_psd(prior->information, 1e-3);
+    odometry_valid_ = anchor_odometry_valid_ && anchor_keyframe_ == last_keyframe_;
+  }
+  if (prior_out != nullptr) *prior_out = prior;
+  if (to_last_out != nullptr) *to_last_out = to_last;
+  return true;
 }
 
 FeatureOutcome Tracker::Impl::track_features(TrackedFrame* frame, const DensePrior* prior,

@@ -69,9 +69,13 @@ struct Tracker::Impl {
   TrackResult track(const RgbdInput& input);
   TrackResult initialise(TrackedFrame* frame, const RgbdPyramid* pyramid);
   TrackResult track_frame(TrackedFrame* frame, const RgbdPyramid* pyramid);
-  TrackResult track_lost(TrackedFrame* frame);
+  TrackResult track_lost(TrackedFrame* frame, const RgbdPyramid* pyramid);
   bool relocalise_frame(TrackedFrame* frame, SE3* T_wc, int* inliers);
   std::optional<DensePrior> align_to_last(const RgbdPyramid* pyramid, DenseResult* dense);
+  std::optional<DensePrior> realign(const RgbdPyramid* pyramid, const SE3& T_wc_guess,
+                                    DenseResult* dense, bool* to_last) const;
+  bool fuse_realigned(TrackedFrame* frame, const RgbdPyramid* pyramid, SE3* T_wc, int* inliers,
+                      DenseResult* dense, std::optional<DensePrior>* prior, bool* to_last);
   FeatureOutcome track_features(TrackedFrame* frame, const DensePrior* prior, const SE3& T_wc_mm);
   bool track_motion_model(TrackedFrame* frame, const SE3& T_wc_mm, SE3* T_wc);
   int match_last_frame(TrackedFrame* frame, const SE3& T_wc_guess, double radius,
@@ -127,6 +131,19 @@ struct Tracker::Impl {
   RgbdPyramid current_pyramid_;
   RgbdPyramid last_pyramid_;  // the last frame's
   bool has_last_pyramid_ = false;
+  // Whether the last frame can serve as a dense reference: tracked ok, with depth.
+  bool last_dense_ready_ = false;
+  // The last such frame before one that could not (TrackerParams::realign_dense): kept apart from
+  // the two above, by swapping, until the next such break.
+  RgbdPyramid anchor_pyramid_;
+  SE3 anchor_T_wc_;
+  bool has_anchor_ = false;
+  // The dense odometry from the last keyframe to the anchor (see odometry_covariance_ below), so
+  // that a frame aligned to the anchor continues it: the keyframe made there is tied to the map
+  // before the break in bundle adjustment, not by its features alone.
+  Eigen::Matrix<double, 6, 6> anchor_odometry_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
+  bool anchor_odometry_valid_ = false;
+  uint64_t anchor_keyframe_ = 0;
   SE3 velocity_;  // T_last_cur of the last tracked step
   bool has_velocity_ = false;
 

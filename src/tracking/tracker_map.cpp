@@ -339,6 +339,8 @@ void Tracker::Impl::reset() {
   failures_ = 0;
   last_.reset();
   has_last_pyramid_ = false;
+  last_dense_ready_ = false;
+  has_anchor_ = false;
   has_velocity_ = false;
   velocity_ = SE3();
   first_keyframe_ = reference_keyframe_ = last_keyframe_ = kNoId;

@@ -10,7 +10,8 @@
 //                  [--no-features] [--no-ba] [--sync-ba] [--dense-weight W]
 //                  [--set NAME=VALUE]... [--verbose]        (NAME: see set_param below)
 //   bench_tracking --all [--frames N]     tabletop, room, tabletop_plain, tabletop every 10th frame
-//   bench_tracking --real [--tum DIR] [--frames N] [--fault NAME] [--verbose]
+//   bench_tracking --real [--tum DIR] [--frames N] [--fault NAME] [--every K [--repeat R]]
+//                         [--verbose]
 //                                                    TUM fr1/xyz and injected faults
 //                                                    (bench_tracking_real.cpp)
 //
@@ -46,6 +47,7 @@ struct Case {
   std::string label;
   std::string scene_path;
   int every = 1;
+  int repeat = 1;
   int frames = 0;  // 0: all
 };
 
@@ -212,7 +214,8 @@ int usage(const char* argv0) {
                "[--no-features] [--no-ba] [--sync-ba] [--dense-weight W] [--set NAME=VALUE] "
                "[--verbose]\n"
                "       %s --all [--frames N]\n"
-               "       %s --real [--tum DIR] [--frames N] [--fault NAME] [--verbose]\n",
+               "       %s --real [--tum DIR] [--frames N] [--fault NAME] [--every K [--repeat R]] "
+               "[--verbose]\n",
                argv0, argv0, argv0);
   return 2;
 }
@@ -223,6 +226,7 @@ int main(int argc, char** argv) {
   const std::string scenes = std::string(DQO_SOURCE_DIR) + "/config/scenes/";
   std::string scene_path = scenes + "tabletop.yaml";
   int every = 1;
+  int repeat = 1;
   int frames = 0;
   bool all = false;
   Options options;
@@ -270,6 +274,9 @@ int main(int argc, char** argv) {
     } else if (v != nullptr && a == "--every") {
       every = std::max(1, std::atoi(v));
       ++i;
+    } else if (v != nullptr && a == "--repeat") {
+      repeat = std::max(1, std::atoi(v));
+      ++i;
     } else if (v != nullptr && a == "--frames") {
       frames = std::max(0, std::atoi(v));
       ++i;
@@ -283,6 +290,9 @@ int main(int argc, char** argv) {
 
   if (real) {
     if (frames > 0) real_options.synthetic_frames = frames;
+    // --every with --real: TUM alone at that step (see RealOptions).
+    if (every > 1 || repeat > 1) real_options.every = every;
+    real_options.repeat = repeat;
     real_options.verbose = options.verbose;
     return run_real_benchmark(DQO_SOURCE_DIR, real_options);
   }

@@ -314,6 +314,14 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
       std::fprintf(stderr, "bench_tracking: %s\n", error.c_str());
       return 1;
     }
+    if (options.every > 0) {
+      for (int r = 0; r < std::max(1, options.repeat); ++r) {
+        const Stats s = run(every_kth(*tum, options.every), Fault{}, options.verbose);
+        zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
+        print(s);
+      }
+      return zero_wrong_ok ? 0 : 1;
+    }
     for (const int k : {1, 5, 10, 20}) {
       const Stats s = run(every_kth(*tum, k), Fault{}, options.verbose);
       zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;

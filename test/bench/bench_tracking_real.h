@@ -7,6 +7,10 @@ struct RealOptions {
   int synthetic_frames = 150;    // of the tabletop (5 s at 30 Hz)
   bool verbose = false;          // one line per frame
   std::string only;              // one fault ("covered", "no depth", "jump 30deg", "repeated")
+  // > 0: only TUM at every `every`-th frame, `repeat` times over (a quick timing or profiling
+  // loop: ten frames at every 20th give a noisy median, and a profiler wants more of them).
+  int every = 0;
+  int repeat = 1;
 };
 
 // Prints one row per run; 0 when no wrong pose was reported ok.

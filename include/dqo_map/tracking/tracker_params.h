@@ -149,6 +149,13 @@ struct TrackerParams {
   bool use_features = true;
   int min_inliers_ok = 15;      // below: this frame's tracking failed
   int frames_to_lost = 3;       // consecutive lost frames before relocalisation takes over
+  // Where dense alignment from the motion model failed or had no reference (after a jump, a
+  // relocalisation, frames without depth) but the features hold, align again from the features'
+  // pose: to the last frame, or where that was lost or had no depth, to the last frame tracked
+  // ok with depth before it (the anchor). A relocalised or monocular pose carries the features'
+  // error (1 cm on `tabletop`), which the dense chain after it would otherwise keep. Only with
+  // synchronous depth (PoseOptimiserParams::max_depth_gap_s), where the fusion is used.
+  bool realign_dense = true;
 };
 
 }  // namespace dqo::tracking
