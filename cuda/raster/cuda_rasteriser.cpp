@@ -1,6 +1,6 @@
 // The CUDA rasteriser's host side (compiled by the C++ compiler: Eigen and the map stay out of
-// nvcc): uploads the map's arrays, runs the device pipeline (raster_pipeline.h) and brings the
-// images back. Device buffers are kept and grown between frames, so a warm rasteriser allocates
+// nvcc): uploads the map's arrays (or, in a backend, renders the engine's copy while it shows the
+// map: cuda_backend.h), runs the device pipeline (raster_pipeline.h) and brings the images back. Device buffers are kept and grown between frames, so a warm rasteriser allocates
 // nothing.
 
 #include "dqo_map/cuda/cuda_rasteriser.h"
@@ -38,17 +38,6 @@ class CudaRasteriser final : public gs::Rasteriser {
   void forward(const gs::GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
                const gs::RenderSettings& settings, gs::RenderOutput* out,
                std::unique_ptr<gs::RenderState>* state) override {
-    render(map, false, camera, T_cw, settings, out, state);
-  }
-
-  void forward_same_gaussians(const gs::GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
-                              const gs::RenderSettings& settings, gs::RenderOutput* out,
-                              std::unique_ptr<gs::RenderState>* state) override {
-    render(map, true, camera, T_cw, settings, out, state);
-  }
-
-  void render(const gs::GaussianMap& map, bool same_gaussians, const PinholeCamera& camera, const SE3& T_cw,
-              const gs::RenderSettings& settings, gs::RenderOutput* out, std::unique_ptr<gs::RenderState>* state) {
     if (state) state->reset();
     ++generation_;
     n_ = 0;  // no backward() for this pass unless it completes
@@ -56,28 +45,23 @@ class CudaRasteriser final : public gs::Rasteriser {
     const size_t n = map.size();
     const size_t pixels = static_cast<size_t>(camera.width) * camera.height;
     pipe_.mark(0);
-    detail::DeviceGaussians g = gaussians_;
-    // The engine's copy where it shows this map (trained there, nothing sent); else the map goes
-    // up, or stays up where the caller vouches that its Gaussians have not changed.
+    // The engine's copy where it shows this map (trained there, nothing sent; shows() checks the
+    // map's revision, so its IDs and types are the map's too); else the map goes up.
+    detail::DeviceGaussians g;
     const bool resident = shared_ && shared_->shows(map);
     if (resident) {
       shared_->wait();
       g = shared_->gaussians();
-    } else if (!same_gaussians || uploaded_ != n || from_resident_) {
-      uploaded_ = 0;
+    } else {
+      g.count = n;
       g.position = upload(&position_, map.positions(), "positions", stream);
       g.log_scale = upload(&log_scale_, map.log_scales(), "log-scales", stream);
       g.rotation = upload(&rotation_, map.rotations(), "rotations", stream);
       g.opacity = upload(&opacity_, map.opacities(), "opacities", stream);
       g.colour = upload(&colour_, map.colours(), "colours", stream);
-    }
-    from_resident_ = resident;
-    g.count = n;
-    if (!resident) {  // the resident IDs and types are the map's (shows() checks its revision)
       g.object_id = upload(&object_id_, map.object_ids_per_gaussian(), "object IDs", stream);
       g.type = upload(&type_, map.types(), "types", stream);
     }
-    uploaded_ = resident ? 0 : n;
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
     pipe_.forward(g, cam, settings, state != nullptr);
     const detail::ForwardImages& img = pipe_.images();
@@ -156,12 +140,10 @@ class CudaRasteriser final : public gs::Rasteriser {
   DeviceBuffer<uint8_t> type_;
   ForwardTimings timings_;
   std::shared_ptr<detail::ResidentMap> shared_;
-  bool from_resident_ = false;  // the latest forward() rendered the shared copy
   // The latest forward pass, for backward().
   uint64_t generation_ = 0;
   size_t n_ = 0;
-  detail::DeviceGaussians gaussians_;  // the map as uploaded by the latest forward()
-  size_t uploaded_ = 0;                // Gaussians on the device (0: none, or an upload failed)
+  detail::DeviceGaussians gaussians_;  // the map as the latest forward() rendered it (uploaded or shared)
   DeviceBuffer<float> v_rgb_, v_depth_, v_alpha_, v_ins_;
   detail::GradientBuffers gradients_;
 };

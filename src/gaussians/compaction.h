@@ -33,7 +33,10 @@ class Compaction {
     jobs_.push_back([values, width, this] { compact(values, width, remove_); });
   }
   void run() {
-    const size_t threads = std::min<size_t>(jobs_.size(), std::max(1u, std::thread::hardware_concurrency()));
+    // Small maps on the calling thread: starting threads would cost more than the copies.
+    const size_t threads = remove_.size() < kThreadedFrom
+                               ? 1
+                               : std::min<size_t>(jobs_.size(), std::max(1u, std::thread::hardware_concurrency()));
     std::atomic<size_t> next{0};
     auto work = [&] {
       for (size_t k = next.fetch_add(1); k < jobs_.size(); k = next.fetch_add(1)) jobs_[k]();
@@ -46,6 +49,7 @@ class Compaction {
   }
 
  private:
+  static constexpr size_t kThreadedFrom = 1 << 16;  // Gaussians
   const std::vector<uint8_t>& remove_;
   std::vector<std::function<void()>> jobs_;
 };

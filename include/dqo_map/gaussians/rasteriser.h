@@ -94,16 +94,6 @@ class Rasteriser {
                        const RenderSettings& settings, RenderOutput* out,
                        std::unique_ptr<RenderState>* state) = 0;
 
-  // forward() of the map that this rasteriser's latest forward() rendered, whose Gaussians have
-  // not changed since (neither their values nor their order) but for their object IDs and types:
-  // a GPU backend skips uploading them again. The caller vouches for that; the default renders as
-  // forward() does.
-  virtual void forward_same_gaussians(const GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
-                                      const RenderSettings& settings, RenderOutput* out,
-                                      std::unique_ptr<RenderState>* state) {
-    forward(map, camera, T_cw, settings, out, state);
-  }
-
   // Gradients of a loss with respect to the map's attributes, given dL/d(outputs) of the forward
   // pass that made `state` (same map, camera and settings).
   virtual void backward(const GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw,
