@@ -125,6 +125,13 @@ class RosoutLog {
     for (const auto& m : lines_) n += m.find(needle) != std::string::npos;
     return n;
   }
+  // Everything the node said so far, one line each (for a failure message).
+  std::string dump() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::string out;
+    for (const auto& m : lines_) out += "  " + node_ + ": " + m + "\n";
+    return out;
+  }
 
  private:
   const std::string node_;

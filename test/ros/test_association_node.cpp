@@ -196,7 +196,9 @@ class AssociationNodeTest : public ::testing::Test {
         [&] {
           return pub_.rgb.getNumSubscribers() > 0 && pub_.depth.getNumSubscribers() > 0 &&
                  pub_.info.getNumSubscribers() >= 2 && pub_.det.getNumSubscribers() > 0 &&
-                 kf_pub_.getNumSubscribers() > 0 && pub_.tf.getNumSubscribers() > 0 &&
+                 // 2: this test's recorder and association_node (the recorder alone, in this
+                 // process, is connected at once; the node later, after the master's update)
+                 kf_pub_.getNumSubscribers() >= 2 && pub_.tf.getNumSubscribers() > 0 &&
                  kfo_sub_.getNumPublishers() > 0 && objects_sub_.getNumPublishers() > 0 &&
                  log_sub_.getNumPublishers() > 0 && overlay_sub_.getNumPublishers() > 0 &&
                  ros::service::exists("/dqo_map/list_objects", false);
@@ -654,7 +656,8 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   bad.detections.push_back(d);
   pub_.det.publish(bad);
   kf_pub_.publish(keyframe_at(1000001, t0));
-  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t0); }, 20.0)) << "keyframe with bad boxes not processed";
+  EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(t0); }, 20.0)) << "keyframe with bad boxes not processed; "
+                                                                         << "association_node said:\n" << rec_.log.dump();
   EXPECT_TRUE(wait_for([&] { return rec_.logged("rejected as unusable"); }, 5.0)) << "no log line about the bad boxes";
   {
     std::lock_guard<std::mutex> l(rec_.mutex);
