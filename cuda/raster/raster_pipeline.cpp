@@ -53,6 +53,7 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   launch_project(g, cam, settings.ins_object, settings.ins_labels != nullptr, splats, rects, tile_count, stream_);
   check(cudaGetLastError(), "projection");
   mark(2);
+  if (clock_) clock_->end(Stage::kProject, stream_);
   // 2. binning: the pair count decides the sort's buffers (the one wait on the host here).
   uint32_t* offsets = offsets_.ensure(n + 1, "offsets");
   check(exclusive_scan(n, tile_count, offsets, &scan_temp_, &scan_temp_bytes_, stream_), "scan");
@@ -77,6 +78,7 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   launch_tile_ranges(pairs, sorted_keys, ranges, stream_);
   check(cudaGetLastError(), "binning");
   mark(3);
+  if (clock_) clock_->end(Stage::kBin, stream_);
   // 3. compositing
   ForwardSettings fs;
   fs.surface_depth = settings.surface_depth;
@@ -108,6 +110,7 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   state_ = kept;
   check(cudaGetLastError(), "compositing");
   mark(4);
+  if (clock_) clock_->end(Stage::kComposite, stream_);
 }
 
 void RasterPipeline::backward(const DeviceGaussians& g, const gs::CameraView<float>& cam,
@@ -131,6 +134,7 @@ void RasterPipeline::backward(const DeviceGaussians& g, const gs::CameraView<flo
                      out.colour, stream_);
   check(cudaGetLastError(), "projection backward");
   mark(7);
+  if (clock_) clock_->end(Stage::kBackward, stream_);
 }
 
 }  // namespace dqo::cuda::detail

@@ -11,6 +11,7 @@
 #include <cstdint>
 
 #include "../common/device_buffer.h"
+#include "../common/stage_clock.h"
 #include "dqo_map/gaussians/rasteriser.h"
 #include "raster_cuda.h"
 
@@ -67,12 +68,15 @@ class RasterPipeline {
   // download; 1-4 and 6-7 are the pipeline's).
   void mark(int k) { check(cudaEventRecord(events_[k], stream_), "timing"); }
   float ms_between(int a, int b) const;
+  // A clock that gets the end of each stage (project, bin, composite, backward); null: none.
+  void set_clock(StageClock* clock) { clock_ = clock; }
   // Device bytes its buffers hold (per Gaussian, per pair, per pixel, the sort's scratch).
   size_t bytes() const;
 
  private:
   cudaStream_t stream_ = nullptr;
   cudaEvent_t events_[8] = {};
+  StageClock* clock_ = nullptr;
   size_t n_ = 0, pairs_ = 0;
   int width_ = 0, height_ = 0;
   ForwardSettings settings_;

@@ -5,7 +5,10 @@
 
 #include "dqo_map/cuda/cuda_training_engine.h"
 
+#include <array>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -34,7 +37,29 @@ struct CachedView {
 
 class CudaTrainingEngine final : public gs::TrainingEngine {
  public:
-  explicit CudaTrainingEngine(std::shared_ptr<detail::ResidentMap> resident) : resident_(std::move(resident)) {}
+  explicit CudaTrainingEngine(std::shared_ptr<detail::ResidentMap> resident) : resident_(std::move(resident)) {
+    const char* env = std::getenv("DQO_CUDA_STAGE_TIMES");
+    if (env && *env && std::string(env) != "0") {
+      clock_.enable(true);
+      pipe_.set_clock(&clock_);
+    }
+  }
+  ~CudaTrainingEngine() override {
+    if (!clock_.enabled()) return;
+    collect_stage_times();
+    std::string line;
+    double total = 0.0;
+    for (size_t s = 0; s < stage_ms_.size(); ++s) total += stage_ms_[s];
+    for (size_t s = 0; s < stage_ms_.size(); ++s) {
+      char part[96];
+      std::snprintf(part, sizeof(part), "%s%s %.1f ms (%.3f per it.)", s ? ", " : "",
+                    detail::stage_name(static_cast<detail::Stage>(s)), stage_ms_[s],
+                    stage_passes_ ? stage_ms_[s] / static_cast<double>(stage_passes_) : 0.0);
+      line += part;
+    }
+    std::fprintf(stderr, "CUDA training engine, GPU time by stage over %zu iterations (%.1f ms): %s\n", stage_passes_,
+                 total, line.c_str());
+  }
 
   std::vector<double> run(const std::vector<gs::TrainingView>& views, const std::vector<gs::TrainingStep>& steps,
                           const gs::TrainingLoss& loss, gs::GaussianMap* map, gs::GaussianAdam* adam) override {
@@ -91,8 +116,10 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     std::vector<double> losses(steps.size(), 0.0);
     const size_t n = map->size();
     const cudaStream_t stream = pipe_.stream();
+    clock_.start(stream);
     // What the host appended or flagged since the last batch, up.
     resident_->sync_up(*map, *adam, stream);
+    clock_.end(detail::Stage::kUpload, stream);
     const detail::DeviceTrainable t = resident_->trainable();
     const detail::DeviceGaussians g = resident_->gaussians();
     const detail::DeviceAttributeGradients grad = gradients_.get(n);
@@ -131,6 +158,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       const detail::DeviceView dv{cv.rgb.get(), cv.depth.get(), cv.labels.get()};
       detail::launch_losses(pixels, img.rgb, img.depth, img.ins, dv, f, v_rgb, v_depth, v_ins, sums + 3 * k, stream);
       check(cudaGetLastError(), "losses");
+      clock_.end(detail::Stage::kLosses, stream);
       detail::ImageGradientsDevice go;
       go.rgb = v_rgb;
       go.depth = v_depth;
@@ -138,6 +166,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       pipe_.backward(g, cam, go, grad);
       detail::launch_adam(t, grad.position, grad.log_scale, grad.rotation, grad.colour, rates, stream);
       check(cudaGetLastError(), "Adam");
+      clock_.end(detail::Stage::kAdam, stream);
     }
 
     // Every iteration done without error before the host's map changes; then the trained
@@ -146,7 +175,9 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     check(cudaStreamSynchronize(stream), "training batch");
     resident_->download_trained(map, stream);
     download(&host_sums, sums, 3 * steps.size(), stream);
+    clock_.end(detail::Stage::kDownload, stream);
     check(cudaStreamSynchronize(stream), "training batch");
+    collect_stage_times();
     for (size_t k = 0; k < steps.size(); ++k) {
       losses[k] = host_sums[3 * k] * rgb_norm[k] + host_sums[3 * k + 1] * depth_norm[k] +
                   host_sums[3 * k + 2] * ins_norm[k];
@@ -186,6 +217,17 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     cache_ = std::move(kept);
   }
 
+  void collect_stage_times() {
+    if (!clock_.enabled()) return;
+    size_t passes = 0;
+    const auto ms = clock_.take(&passes);
+    for (size_t s = 0; s < ms.size(); ++s) stage_ms_[s] += ms[s];
+    stage_passes_ += passes;
+  }
+
+  detail::StageClock clock_;  // before pipe_: the pipeline holds a pointer to it
+  std::array<double, detail::StageClock::kStages> stage_ms_{};
+  size_t stage_passes_ = 0;
   detail::RasterPipeline pipe_;
   std::map<uint64_t, std::unique_ptr<CachedView>> cache_;
   std::shared_ptr<detail::ResidentMap> resident_;  // shared with the backend's rasteriser
