@@ -128,6 +128,19 @@ size_t GaussianMap::relabel(uint32_t from, uint32_t to) {
   return n;
 }
 
+size_t GaussianMap::relabel_each(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id) {
+  if (which.size() != size() || new_id.size() != size())
+    throw std::invalid_argument("GaussianMap::relabel_each: masks must have one entry per Gaussian");
+  size_t n = 0;
+  for (size_t i = 0; i < which.size(); ++i) {
+    if (!which[i] || object_id_[i] == new_id[i]) continue;
+    object_id_[i] = new_id[i];
+    ++n;
+  }
+  if (n) revision_.bump();
+  return n;
+}
+
 size_t GaussianMap::bytes_used() const {
   return capacity_bytes(position_) + capacity_bytes(log_scale_) + capacity_bytes(rotation_) +
          capacity_bytes(opacity_) + capacity_bytes(colour_) + capacity_bytes(confidence_) +

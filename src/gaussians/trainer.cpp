@@ -1,6 +1,7 @@
 #include "dqo_map/gaussians/trainer.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -342,32 +343,17 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   relabel_gaussians(relabel, new_id);
 }
 
-// GaussianMap relabels whole objects only: a single Gaussian changes its ID by leaving the map and
-// coming back (appended) with the new one, keeping its attributes, confidence and stability.
+// In place: a relabelled Gaussian keeps its index, attributes, optimiser state and counters (its
+// votes start over). (It used to leave the map and come back appended, which cost a compaction
+// of every array per keyframe and the optimiser's moments of the Gaussians that moved.)
 void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
                                         const std::vector<uint32_t>& new_id) {
-  std::vector<GaussianInit> moved;
-  std::vector<float> confidence, usefulness;
-  std::vector<uint8_t> stable;
+  const size_t n = map_.relabel_each(which, new_id);
+  if (n == 0) return;
+  relabelled_ += n;
   for (size_t i = 0; i < which.size(); ++i) {
-    if (!which[i]) continue;
-    usefulness.push_back(usefulness_[i]);
-    GaussianInit g = map_.gaussian(i);
-    g.object_id = new_id[i];
-    moved.push_back(g);
-    confidence.push_back(map_.confidences()[i]);
-    stable.push_back(map_.stable()[i]);
+    if (which[i]) relabel_votes_[i] = 0;
   }
-  if (moved.empty()) return;
-  relabelled_ += moved.size();
-  remove_if(which);
-  for (size_t k = 0; k < moved.size(); ++k) {
-    const size_t i = map_.add(moved[k]);
-    map_.confidences()[i] = confidence[k];
-    map_.stable()[i] = stable[k];
-  }
-  sync_state();
-  std::copy(usefulness.begin(), usefulness.end(), usefulness_.end() - usefulness.size());
 }
 
 RenderSettings GaussianTrainer::mask_settings(const StoredKeyframe& kf) const {
@@ -381,19 +367,22 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
   const int w = kf.camera.width, h = kf.camera.height;
   const size_t n = static_cast<size_t>(w) * h;
   std::vector<uint8_t> missing(n, 1), error(n, 0);  // error: 1 geometry, 2 colour only
+  const int threads = detail::resolve_threads(0);
   if (out) {
-    for (size_t p = 0; p < n; ++p) {
-      missing[p] = (1.f - out->alpha[p]) > params_.missing_transmittance;
-      if (missing[p]) continue;
-      const float d = kf.depth.data[p];
-      if (valid_depth(d) && std::abs(out->depth[p] - d) > params_.depth_error) {
-        error[p] = 1;
-        continue;
+    detail::parallel_for_chunks(threads, n, [&](size_t begin, size_t end) {
+      for (size_t p = begin; p < end; ++p) {
+        missing[p] = (1.f - out->alpha[p]) > params_.missing_transmittance;
+        if (missing[p]) continue;
+        const float d = kf.depth.data[p];
+        if (valid_depth(d) && std::abs(out->depth[p] - d) > params_.depth_error) {
+          error[p] = 1;
+          continue;
+        }
+        float dc = 0.f;
+        for (int c = 0; c < 3; ++c) dc += std::abs(out->rgb[3 * p + c] - kf.rgb.data[3 * p + c]);
+        if (dc / 3.f > params_.colour_error) error[p] = 2;
       }
-      float dc = 0.f;
-      for (int c = 0; c < 3; ++c) dc += std::abs(out->rgb[3 * p + c] - kf.rgb.data[3 * p + c]);
-      if (dc / 3.f > params_.colour_error) error[p] = 2;
-    }
+    });
     // Mask_geo also holds the pixels of object k where k's instance opacity is low (one render
     // gives every object's on its own pixels: RenderSettings::ins_labels).
     if (!kf.objects.empty()) {
@@ -404,13 +393,14 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
         rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), mask_settings(kf), &rendered, nullptr);
         ins = &rendered.ins;
       }
-      for (size_t p = 0; p < n; ++p) {
-        if (kf.labels.data[p] != 0 && !missing[p] && (*ins)[p] < params_.ins_threshold) error[p] = 1;
-      }
+      detail::parallel_for_chunks(threads, n, [&](size_t begin, size_t end) {
+        for (size_t p = begin; p < end; ++p) {
+          if (kf.labels.data[p] != 0 && !missing[p] && (*ins)[p] < params_.ins_threshold) error[p] = 1;
+        }
+      });
     }
   }
 
-  std::uniform_real_distribution<float> uniform(0.f, 1.f);
   // Near its budget the map takes new background surface at half the density, each Gaussian twice
   // as wide: the same area for a quarter of the Gaussians, where the full density would only push
   // out as many elsewhere (the budget's pruning) and leave holes in what the other views saw.
@@ -418,32 +408,62 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
   const bool tight = params_.max_gaussians > 0 &&
                      map_.size() >= static_cast<size_t>(0.75 * params_.max_gaussians);
   const int fine_stride = std::max(1, params_.missing_stride);
-  for (int v = 0; v < h; ++v) {
+  // The candidates row by row, over threads: missing pixels on the stride grid, and error pixels
+  // with a measured depth in range (those draw their chance below).
+  struct Candidate {
+    int u, v, stride;
+    uint8_t error;  // 0: missing, else error[p]
+  };
+  std::vector<std::vector<Candidate>> rows(static_cast<size_t>(h));
+  std::vector<size_t> missing_in_row(h, 0), error_in_row(h, 0);
+  detail::parallel_for_dynamic(threads, static_cast<size_t>(h), [&](size_t row) {
+    const int v = static_cast<int>(row);
     for (int u = 0; u < w; ++u) {
       const size_t p = static_cast<size_t>(v) * w + u;
+      if (!missing[p] && !error[p]) continue;
       const float d = kf.depth.data[p];
       const bool usable = valid_depth(d) && d >= params_.min_depth && d <= params_.max_depth;
       const bool coarse = tight && kf.labels.data[p] == 0;
       const int stride = fine_stride * (coarse ? 2 : 1);
       if (missing[p]) {
-        ++report->missing_pixels;
-        if (usable && u % stride == 0 && v % stride == 0) {
-          add_gaussian_at(kf, u, v, stride, false);
-          ++report->added_missing;
-        }
-      } else if (error[p]) {
-        ++report->error_pixels;
-        if (usable && uniform(rng_) < params_.error_sample_rate / (coarse ? 4.f : 1.f)) {
-          add_gaussian_at(kf, u, v, stride, error[p] == 2 && params_.transparent_for_colour_error);
-          ++report->added_error;
-        }
+        ++missing_in_row[row];
+        if (usable && u % stride == 0 && v % stride == 0) rows[row].push_back({u, v, stride, 0});
+      } else {
+        ++error_in_row[row];
+        if (usable) rows[row].push_back({u, v, stride, error[p]});
       }
     }
+  });
+  // In raster order, one draw per usable error pixel (the sequence of a serial pass over the image).
+  std::uniform_real_distribution<float> uniform(0.f, 1.f);
+  std::vector<Candidate> chosen;
+  for (int v = 0; v < h; ++v) {
+    report->missing_pixels += missing_in_row[v];
+    report->error_pixels += error_in_row[v];
+    for (const Candidate& c : rows[v]) {
+      if (c.error) {
+        const bool coarse = c.stride != fine_stride;
+        if (!(uniform(rng_) < params_.error_sample_rate / (coarse ? 4.f : 1.f))) continue;
+        ++report->added_error;
+      } else {
+        ++report->added_missing;
+      }
+      chosen.push_back(c);
+    }
   }
+  // Each new Gaussian on its own (a normal from its neighbours' depths), then appended in order.
+  std::vector<GaussianInit> made(chosen.size());
+  detail::parallel_for_chunks(threads, chosen.size(), [&](size_t begin, size_t end) {
+    for (size_t k = begin; k < end; ++k) {
+      const Candidate& c = chosen[k];
+      made[k] = gaussian_at(kf, c.u, c.v, c.stride, c.error == 2 && params_.transparent_for_colour_error);
+    }
+  });
+  for (const GaussianInit& g : made) map_.add(g);  // (no reserve: the arrays' growth stays geometric)
 }
 
-void GaussianTrainer::add_gaussian_at(const StoredKeyframe& kf, int u, int v, int stride,
-                                      bool transparent) {
+GaussianInit GaussianTrainer::gaussian_at(const StoredKeyframe& kf, int u, int v, int stride,
+                                          bool transparent) const {
   const PinholeCamera& cam = kf.camera;
   const int w = cam.width, h = cam.height;
   const float d = kf.depth.data[static_cast<size_t>(v) * w + u];
@@ -508,7 +528,7 @@ void GaussianTrainer::add_gaussian_at(const StoredKeyframe& kf, int u, int v, in
   g.object_id = kf.labels.data[p];
   g.type = transparent ? GaussianType::kTransparent : GaussianType::kOpaque;
   g.birth_keyframe = static_cast<uint32_t>(keyframe_count_ - 1);
-  map_.add(g);
+  return g;
 }
 
 double GaussianTrainer::iterate(const StoredKeyframe& kf) {
@@ -603,27 +623,37 @@ void GaussianTrainer::prune(KeyframeReport* report) {
   const auto& birth = map_.birth_keyframes();
   const auto& log_scale = map_.log_scales();
   std::vector<uint8_t> remove(n, 0);
-  for (size_t i = 0; i < n; ++i) {
-    const float s = std::max({log_scale[3 * i], log_scale[3 * i + 1], log_scale[3 * i + 2]});
-    if (params_.max_unstable_age > 0 && !stable[i] &&
-        now - birth[i] > static_cast<uint32_t>(params_.max_unstable_age)) {
-      remove[i] = 1;
-      ++report->pruned_stale;
-    } else if (s > max_log_scale) {
-      remove[i] = 1;
-      ++report->pruned_oversized;
-    } else if (params_.max_invisible_keyframes > 0 &&
-               invisible_count_[i] >= params_.max_invisible_keyframes) {
-      remove[i] = 1;
-      ++report->pruned_invisible;
+  // Each Gaussian on its own, over threads (a million take a few ms on one core); the counts
+  // summed per chunk.
+  std::atomic<size_t> stale{0}, oversized{0}, invisible{0};
+  detail::parallel_for_chunks(detail::resolve_threads(0), n, [&](size_t begin, size_t end) {
+    size_t n_stale = 0, n_oversized = 0, n_invisible = 0;
+    for (size_t i = begin; i < end; ++i) {
+      const float s = std::max({log_scale[3 * i], log_scale[3 * i + 1], log_scale[3 * i + 2]});
+      if (params_.max_unstable_age > 0 && !stable[i] &&
+          now - birth[i] > static_cast<uint32_t>(params_.max_unstable_age)) {
+        remove[i] = 1;
+        ++n_stale;
+      } else if (s > max_log_scale) {
+        remove[i] = 1;
+        ++n_oversized;
+      } else if (params_.max_invisible_keyframes > 0 &&
+                 invisible_count_[i] >= params_.max_invisible_keyframes) {
+        remove[i] = 1;
+        ++n_invisible;
+      }
     }
-  }
+    stale += n_stale, oversized += n_oversized, invisible += n_invisible;
+  });
+  report->pruned_stale += stale;
+  report->pruned_oversized += oversized;
+  report->pruned_invisible += invisible;
   // The budget: of the survivors, the least useful go until max_gaussians remain. The Gaussians
   // this keyframe added have not been measured yet (the review ran on the render before they
   // were): they are measured first, on the newest view after its optimisation, or a budget
   // smaller than one keyframe's additions would drop them in the order they were added (whole
   // rows of the image).
-  const size_t kept = n - static_cast<size_t>(std::count(remove.begin(), remove.end(), 1));
+  const size_t kept = n - stale - oversized - invisible;
   if (params_.max_gaussians > 0 && kept > static_cast<size_t>(params_.max_gaussians)) {
     const StoredKeyframe& newest = window_.back();
     RenderOutput out;

@@ -160,8 +160,16 @@ TEST(GaussianMap, RevisionChangesWithEveryStructuralEdit) {
   EXPECT_EQ(map.relabel(2, 3), 2u);
   const uint64_t relabelled = map.revision();
   EXPECT_NE(relabelled, two);
-  EXPECT_EQ(map.remove_if({1, 0}), 1u);
+  EXPECT_EQ(map.relabel_each({1, 1}, {3, 3}), 0u) << "already 3";
+  EXPECT_EQ(map.revision(), relabelled);
+  EXPECT_EQ(map.relabel_each({0, 1}, {7, 4}), 1u);
   EXPECT_NE(map.revision(), relabelled);
+  EXPECT_EQ(map.object_ids_per_gaussian(), (std::vector<uint32_t>{3, 4})) << "only the flagged one";
+  EXPECT_THROW(map.relabel_each({1}, {1}), std::invalid_argument);
+  const uint64_t each = map.revision();
+  EXPECT_EQ(map.remove_if({1, 0}), 1u);
+  EXPECT_NE(map.revision(), each);
+  EXPECT_EQ(map.object_ids_per_gaussian(), (std::vector<uint32_t>{4}));
   // Copies and assignments are other maps, even with the same contents.
   GaussianMap copy = map;
   EXPECT_NE(copy.revision(), map.revision());

@@ -81,6 +81,9 @@ class GaussianMap {
   // Every Gaussian of `from` becomes `to`'s (an object merged into another; to = 0 returns them to
   // the background). Returns how many were relabelled.
   size_t relabel(uint32_t from, uint32_t to);
+  // Gaussians one by one: new_id[i] for each i with which[i] != 0 (both size()); the labels that
+  // follow the observations (GaussianTrainer). Returns how many changed.
+  size_t relabel_each(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id);
 
   // Bytes held by the attribute arrays (capacity, not size).
   size_t bytes_used() const;

@@ -239,7 +239,8 @@ class GaussianTrainer {
   void add_gaussians(const StoredKeyframe& kf, const RenderOutput* out, KeyframeReport* report,
                      bool ins_current = true);
   // `stride`: the pixel spacing the new Gaussian stands for (its in-plane size).
-  void add_gaussian_at(const StoredKeyframe& kf, int u, int v, int stride, bool transparent);
+  // The Gaussian of pixel (u, v) of the keyframe (const: called from several threads at once).
+  GaussianInit gaussian_at(const StoredKeyframe& kf, int u, int v, int stride, bool transparent) const;
   double iterate(const StoredKeyframe& kf);
   // `iterations` iterations on the engine, keyframes and objects drawn as iterate() draws them;
   // the loss of each.
