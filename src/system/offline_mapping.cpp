@@ -7,6 +7,7 @@
 
 #include "dqo_map/common/mask_detections.h"
 #include "dqo_map/common/stopwatch.h"
+#include "mapping_thread.h"
 
 namespace dqo::system {
 mapping::ObjectRecord object_record_from_box(uint64_t id, int class_id,
@@ -69,6 +70,7 @@ OfflineResult run_offline_mapping(const FrameSource& source, const OfflineStages
       return std::make_tuple(std::move(frame), e, ms_since(t0));
     });
   };
+  MappingThread mapping_thread(mapper, params.mapping_thread);
   decltype(read(0)) next;
   if (total > 0) next = read(frames[0]);
   for (int n = 0; n < total; ++n) {
@@ -109,33 +111,42 @@ OfflineResult run_offline_mapping(const FrameSource& source, const OfflineStages
                                                  : ground_truth_objects(*frame, source.info());
       objects.keyframe_objects.keyframe_id = kf.id;
       result.timings.objects_ms.push_back(objects.ms);
-      std::string error;
-      if (!mapper->add_keyframe(std::move(kf), &error)) {
-        ++result.rejected_keyframes;
-        result.warnings.push_back(error);
-      } else {
-        ++result.keyframes;
-        for (const mapping::MappingEvent& e : objects.events) mapper->apply_event(e);
-        mapper->set_objects(std::move(objects.objects));
-        if (!mapper->add_keyframe_objects(std::move(objects.keyframe_objects), &error)) {
-          result.warnings.push_back(error);
-        }
-      }
+      // In the order the ROS nodes publish: the keyframe, its events, the objects, its objects.
+      mapping_thread.post(
+          [kf = std::move(kf), objects = std::move(objects)](mapping::GaussianMapper& m,
+                                                              std::vector<std::string>* warnings) mutable {
+            std::string error;
+            if (!m.add_keyframe(std::move(kf), &error)) {
+              warnings->push_back(error);
+              return false;
+            }
+            for (const mapping::MappingEvent& e : objects.events) m.apply_event(e);
+            m.set_objects(std::move(objects.objects));
+            if (!m.add_keyframe_objects(std::move(objects.keyframe_objects), &error)) warnings->push_back(error);
+            return true;
+          },
+          true);
     }
     if (stages.corrected_poses) {
-      const auto corrected = stages.corrected_poses();
-      if (!corrected.empty()) mapper->set_keyframe_poses(corrected);
-    }
-    while (auto report = mapper->process_next()) {
-      result.timings.mapping_ms.push_back(report->total_ms);
-      result.reports.push_back(std::move(*report));
+      auto corrected = stages.corrected_poses();
+      if (!corrected.empty()) {
+        mapping_thread.post(
+            [corrected = std::move(corrected)](mapping::GaussianMapper& m, std::vector<std::string>*) {
+              m.set_keyframe_poses(corrected);
+              return true;
+            },
+            false);
+      }
     }
     if (progress) progress(n + 1, total);
   }
-  mapper->flush();
-  while (auto report = mapper->process_next()) {
-    result.timings.mapping_ms.push_back(report->total_ms);
-    result.reports.push_back(std::move(*report));
+  MappingThread::Outcome mapped = mapping_thread.finish();
+  result.keyframes = mapped.keyframes;
+  result.rejected_keyframes = mapped.rejected_keyframes;
+  for (std::string& w : mapped.warnings) result.warnings.push_back(std::move(w));
+  for (mapping::MappingReport& report : mapped.reports) {
+    result.timings.mapping_ms.push_back(report.total_ms);
+    result.reports.push_back(std::move(report));
   }
   result.ok = result.error.empty();
   result.seconds =

@@ -58,7 +58,8 @@ constexpr char kUsage[] =
     "                       [--backend auto|cpu|cuda] [--scale S] [--frames N] [--every K]\n"
     "                       [--config mapping.yaml] [--tracking-config tracking.yaml]\n"
     "                       [--objects-config objects.yaml] [--max-gaussians N] [--threads T]\n"
-    "                       [--no-noise] [--no-meshes] [--background-mesh] [--map FILE] [--preload] [--quiet]\n"
+    "                       [--no-noise] [--no-meshes] [--background-mesh] [--map FILE] [--preload]\n"
+    "                       [--one-thread] [--quiet]\n"
     "  INPUT              a dataset folder (own format, TUM RGB-D, Replica) or a scene YAML\n"
     "                     (rendered in memory, with its sensor noise unless --no-noise)\n"
     "  --out DIR          output folder (created)\n"
@@ -78,6 +79,8 @@ constexpr char kUsage[] =
     "  --threads T        CPU threads of the rasteriser and the renderer (default: all)\n"
     "  --preload          read (render) every frame into memory before the clock starts: times the\n"
     "                     pipeline alone (memory: about 11 bytes per pixel and frame)\n"
+    "  --one-thread       map on the frame loop's thread (default: a thread of its own, as the ROS\n"
+    "                     system runs it; the same map either way)\n"
     "  --no-meshes        skip the per-object meshes (and the reconstruction metrics)\n"
     "  --background-mesh  also mesh the background (background_mesh.ply, 1 cm voxels)\n"
     "  --map FILE         no mapping: mesh and evaluate the map of a finished run (map.dqomap)\n";
@@ -106,6 +109,7 @@ struct Options {
   double scale = 1.0;
   int frames = -1, every = 1, max_gaussians = -1, threads = 0;
   bool noise = true, meshes = true, background_mesh = false, quiet = false, preload = false;
+  bool mapping_thread = true;
 #ifdef DQO_WITH_DETECTOR
   dqo::detector::YoloParams detector;  // detector.model empty: no detector
 #endif
@@ -162,6 +166,8 @@ int parse_options(int argc, char** argv, Options* out) {
       return 0;
     } else if (a == "--preload") {
       o.preload = true;
+    } else if (a == "--one-thread") {
+      o.mapping_thread = false;
     } else if (a == "--no-noise") {
       o.noise = false;
     } else if (a == "--no-meshes") {
@@ -334,6 +340,7 @@ int main(int argc, char** argv) {
   dqo::system::OfflineMappingParams run_params;
   run_params.max_frames = o.frames;
   run_params.every = o.every;
+  run_params.mapping_thread = o.mapping_thread;
 #ifdef DQO_FULL_PIPELINE
   dqo::tracking::TrackingConfig tracking_config;
   if (!o.tracking_config.empty()) {

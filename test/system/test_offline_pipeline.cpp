@@ -50,12 +50,14 @@ struct TinyRun {
   std::shared_ptr<objects::ObjectMapper> objects;
 };
 
-TinyRun run_tiny(const FrameSource& source, OfflineStages stages, LabelSource labels) {
+TinyRun run_tiny(const FrameSource& source, OfflineStages stages, LabelSource labels, bool mapping_thread = true) {
   TinyRun run;
   run.mapper = std::make_unique<mapping::GaussianMapper>(mapper_params());
   run.objects = add_object_stage(objects::ObjectMapperParams(), DetectionSource::kDataset, labels,
                                  source.info(), &stages);
-  run.result = run_offline_mapping(source, stages, OfflineMappingParams(), run.mapper.get());
+  OfflineMappingParams params;
+  params.mapping_thread = mapping_thread;
+  run.result = run_offline_mapping(source, stages, params, run.mapper.get());
   run.mapper->set_objects(to_object_records(run.objects->objects()));
   return run;
 }
@@ -103,6 +105,27 @@ TEST(OfflinePipeline, TinyObjectsPosesAndGaussians) {
     }
     EXPECT_GE(inside, g.size() * 95 / 100) << "object " << match.est_id << " (GT " << gt->id << ")";
   }
+}
+
+// The mapping stage on its own thread (the default) sees the same calls in the same order as on
+// the frame loop's: the same keyframes, reports and map, to the bit.
+TEST(OfflinePipeline, TheMappingThreadGivesTheSameMapAsOneThread) {
+  const auto source = tiny_source();
+  const TinyRun& threaded = ground_truth_run();
+  const TinyRun one = run_tiny(*source, OfflineStages(), LabelSource::kMasks, false);
+  ASSERT_TRUE(threaded.result.ok && one.result.ok);
+  EXPECT_EQ(threaded.result.keyframes, one.result.keyframes);
+  ASSERT_EQ(threaded.result.reports.size(), one.result.reports.size());
+  for (size_t k = 0; k < one.result.reports.size(); ++k) {
+    EXPECT_EQ(threaded.result.reports[k].keyframe_id, one.result.reports[k].keyframe_id);
+    EXPECT_EQ(threaded.result.reports[k].trainer.losses, one.result.reports[k].trainer.losses) << "keyframe " << k;
+  }
+  const gs::GaussianMap& a = threaded.mapper->map();
+  const gs::GaussianMap& b = one.mapper->map();
+  ASSERT_GT(b.size(), 0u);
+  EXPECT_EQ(a.positions(), b.positions());
+  EXPECT_EQ(a.colours(), b.colours());
+  EXPECT_EQ(a.object_ids_per_gaussian(), b.object_ids_per_gaussian());
 }
 
 TEST(OfflinePipeline, ADetectorInPlaceOfTheDatasetsDetectionsGivesTheSameMap) {

@@ -50,6 +50,9 @@ struct OfflineMappingParams {
   KeyframeSelectorParams keyframes;  // for ground-truth poses
   int max_frames = -1;               // < 0: all
   int every = 1;                     // every K-th input frame is read
+  // The mapping stage on a thread of its own while the frame loop goes on (as the ROS system
+  // runs it); the map is the same either way (src/system/mapping_thread.h).
+  bool mapping_thread = true;
 };
 
 // Per-stage timings, milliseconds.
