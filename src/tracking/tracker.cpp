@@ -96,6 +96,7 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
       result = initialise(&frame, pyramid);
       break;
     case TrackingState::kOk:
+    case TrackingState::kDegraded:  // reported only, never the mode (tracker_impl.h): tracks as kOk
       result = track_frame(&frame, pyramid);
       break;
     case TrackingState::kLost:
