@@ -99,6 +99,7 @@ OfflineResult run_offline_mapping(const FrameSource& source, const OfflineStages
     }
     result.trajectory.emplace_back(frame->timestamp, *pose.T_wc);
 
+    MappingThread::Work keyframe_work;
     if (pose.keyframe) {
       mapping::MappingKeyframe kf;
       kf.id = *pose.keyframe;
@@ -112,31 +113,33 @@ OfflineResult run_offline_mapping(const FrameSource& source, const OfflineStages
       objects.keyframe_objects.keyframe_id = kf.id;
       result.timings.objects_ms.push_back(objects.ms);
       // In the order the ROS nodes publish: the keyframe, its events, the objects, its objects.
-      mapping_thread.post(
-          [kf = std::move(kf), objects = std::move(objects)](mapping::GaussianMapper& m,
-                                                              std::vector<std::string>* warnings) mutable {
-            std::string error;
-            if (!m.add_keyframe(std::move(kf), &error)) {
-              warnings->push_back(error);
-              return false;
-            }
-            for (const mapping::MappingEvent& e : objects.events) m.apply_event(e);
-            m.set_objects(std::move(objects.objects));
-            if (!m.add_keyframe_objects(std::move(objects.keyframe_objects), &error)) warnings->push_back(error);
-            return true;
-          },
-          true);
+      keyframe_work = [kf = std::move(kf), objects = std::move(objects)](
+                          mapping::GaussianMapper& m, std::vector<std::string>* warnings) mutable {
+        std::string error;
+        if (!m.add_keyframe(std::move(kf), &error)) {
+          warnings->push_back(error);
+          return false;
+        }
+        for (const mapping::MappingEvent& e : objects.events) m.apply_event(e);
+        m.set_objects(std::move(objects.objects));
+        if (!m.add_keyframe_objects(std::move(objects.keyframe_objects), &error)) warnings->push_back(error);
+        return true;
+      };
     }
-    if (stages.corrected_poses) {
-      auto corrected = stages.corrected_poses();
-      if (!corrected.empty()) {
-        mapping_thread.post(
-            [corrected = std::move(corrected)](mapping::GaussianMapper& m, std::vector<std::string>*) {
-              m.set_keyframe_poses(corrected);
-              return true;
-            },
-            false);
-      }
+    std::map<mapping::KeyframeId, SE3> corrected;
+    if (stages.corrected_poses) corrected = stages.corrected_poses();
+    // The frame's keyframe and corrections as one piece of work: the mapper maps what became
+    // ready after both, as the single-threaded loop did.
+    if (keyframe_work || !corrected.empty()) {
+      const bool is_keyframe = static_cast<bool>(keyframe_work);
+      mapping_thread.post(
+          [work = std::move(keyframe_work), corrected = std::move(corrected)](
+              mapping::GaussianMapper& m, std::vector<std::string>* warnings) mutable {
+            const bool accepted = !work || work(m, warnings);
+            if (!corrected.empty()) m.set_keyframe_poses(corrected);
+            return accepted;
+          },
+          is_keyframe);
     }
     if (progress) progress(n + 1, total);
   }
