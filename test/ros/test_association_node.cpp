@@ -722,7 +722,9 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
     std::lock_guard<std::mutex> l(rec_.mutex);
     EXPECT_GT(rec_.arrays.size(), arrays_before_bad) << "objects are still published after bad input";
     for (const auto& o : rec_.arrays.back().objects) {
-      if (before_ids.count(o.id)) EXPECT_EQ(o.num_gaussians, 1000 + o.id) << "objects topic: Gaussian count of " << o.id;
+      if (before_ids.count(o.id)) {
+        EXPECT_EQ(o.num_gaussians, 1000 + o.id) << "objects topic: Gaussian count of " << o.id;
+      }
     }
   }
 }
@@ -822,7 +824,9 @@ TEST_F(AssociationNodeTest, RestartResumesOnlyObjectsOfItsMap) {
   {
     std::lock_guard<std::mutex> l(mutex);
     for (const auto& e : events) {
-      if (e.type == dqo_map::ObjectEvent::CREATED) EXPECT_GT(e.id, max_id) << "ID " << e.id << " reused in map B";
+      if (e.type == dqo_map::ObjectEvent::CREATED) {
+        EXPECT_GT(e.id, max_id) << "ID " << e.id << " reused in map B";
+      }
       max_id = std::max(max_id, e.id);
     }
   }

@@ -165,7 +165,9 @@ TEST(KinectBag, DetectionsCarryTheInstanceMasksWhenAsked) {
       EXPECT_GT(std::count_if(got.begin(), got.end(), [](uint16_t v) { return v != 0; }), 0);
     }
     EXPECT_EQ(k, frames.size());
-    if (masks) EXPECT_GT(with_detections, 0u);
+    if (masks) {
+      EXPECT_GT(with_detections, 0u);
+    }
   }
   std::filesystem::remove(path);
 }

@@ -67,7 +67,7 @@ RunRecord run(const TrackingConfig& config, const dqo::PinholeCamera& camera,
   TrackingSession session(config);
   RunRecord out;
   for (const dqo::Frame& f : frames) {
-    const dqo::tracking::RgbdInput input{f.timestamp, &f.rgb, &f.depth};
+    const dqo::tracking::RgbdInput input{f.timestamp, &f.rgb, &f.depth, std::nullopt};
     const SessionResult r = session.track(camera, input);
     out.states.push_back(static_cast<int>(r.track.state));
     out.ok += r.track.state == dqo::tracking::TrackingState::kOk;

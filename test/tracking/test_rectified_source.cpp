@@ -107,7 +107,7 @@ class DistortedTabletop : public ::testing::Test {
     double sum = 0.0;
     for (int i = 0; i < source.num_frames(); ++i) {
       const auto f = source.read_frame(i);
-      const dqo::tracking::RgbdInput input{f->timestamp, &f->rgb, &f->depth};
+      const dqo::tracking::RgbdInput input{f->timestamp, &f->rgb, &f->depth, std::nullopt};
       const dqo::tracking::TrackResult r = tracker.track(input);
       EXPECT_EQ(r.state, dqo::tracking::TrackingState::kOk) << "frame " << i;
       if (r.state != dqo::tracking::TrackingState::kOk) return INFINITY;
