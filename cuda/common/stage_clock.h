@@ -5,11 +5,13 @@
 //
 // Set DQO_CUDA_STAGE_TIMES=1 to have the training engine log its totals when it is destroyed
 // (cuda_training_engine.cpp): where an iteration's time goes, on a real run.
+// The events of a batch are read once its work is done (collect()) and kept as running totals.
 
 #include <cuda_runtime.h>
 
 #include <array>
 #include <cstddef>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -41,24 +43,37 @@ class StageClock {
   // The end of stage `s`: the time since the previous event is its.
   void end(Stage s, cudaStream_t stream) { record(static_cast<int>(s), stream); }
 
-  // Milliseconds per stage since the last take(); waits for the last event. Counts a pass per
-  // kProject stage (iterations and renders).
-  std::array<double, kStages> take(size_t* passes = nullptr) {
-    std::array<double, kStages> ms{};
-    size_t n = 0;
-    if (used_ > 0 && cudaEventSynchronize(pool_[used_ - 1]) == cudaSuccess) {
+  // Adds the recorded stages to the totals (waits for the last event) and starts over; a pass is
+  // counted per kProject stage (iterations and renders).
+  void collect() {
+    if (used_ == 0) return;  // nothing recorded (or disabled)
+    if (cudaEventSynchronize(pool_[used_ - 1]) == cudaSuccess) {
       for (size_t i = 1; i < used_; ++i) {
         if (stage_[i] < 0) continue;
         float t = 0.f;
-        if (cudaEventElapsedTime(&t, pool_[i - 1], pool_[i]) == cudaSuccess) ms[stage_[i]] += t;
-        n += stage_[i] == static_cast<int>(Stage::kProject);
+        if (cudaEventElapsedTime(&t, pool_[i - 1], pool_[i]) == cudaSuccess) totals_[stage_[i]] += t;
+        passes_ += stage_[i] == static_cast<int>(Stage::kProject);
       }
     }
     cudaGetLastError();
     used_ = 0;
     stage_.clear();
-    if (passes) *passes = n;
-    return ms;
+  }
+
+  // The totals so far, one line: "N passes (T ms): upload t ms (t per pass), project …".
+  std::string summary() const {
+    double total = 0.0;
+    for (const double ms : totals_) total += ms;
+    char head[64];
+    std::snprintf(head, sizeof(head), "%zu passes (%.1f ms): ", passes_, total);
+    std::string line = head;
+    for (size_t s = 0; s < kStages; ++s) {
+      char part[96];
+      std::snprintf(part, sizeof(part), "%s%s %.1f ms (%.3f per pass)", s ? ", " : "", stage_name(static_cast<Stage>(s)),
+                    totals_[s], passes_ ? totals_[s] / static_cast<double>(passes_) : 0.0);
+      line += part;
+    }
+    return line;
   }
 
  private:
@@ -81,6 +96,8 @@ class StageClock {
   }
 
   bool enabled_ = false;
+  std::array<double, kStages> totals_{};
+  size_t passes_ = 0;
   std::vector<cudaEvent_t> pool_;
   std::vector<int> stage_;
   size_t used_ = 0;

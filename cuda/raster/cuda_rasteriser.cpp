@@ -1,7 +1,7 @@
 // The CUDA rasteriser's host side (compiled by the C++ compiler: Eigen and the map stay out of
 // nvcc): uploads the map's arrays (or, in a backend, renders the engine's copy while it shows the
-// map: cuda_backend.h), runs the device pipeline (raster_pipeline.h) and brings the images back. Device buffers are kept and grown between frames, so a warm rasteriser allocates
-// nothing.
+// map: cuda_backend.h), runs the device pipeline (raster_pipeline.h) and brings the images back.
+// Device buffers are kept and grown between frames, so a warm rasteriser allocates nothing.
 
 #include "dqo_map/cuda/cuda_rasteriser.h"
 

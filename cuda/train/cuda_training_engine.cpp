@@ -5,7 +5,6 @@
 
 #include "dqo_map/cuda/cuda_training_engine.h"
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -46,19 +45,8 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   }
   ~CudaTrainingEngine() override {
     if (!clock_.enabled()) return;
-    collect_stage_times();
-    std::string line;
-    double total = 0.0;
-    for (size_t s = 0; s < stage_ms_.size(); ++s) total += stage_ms_[s];
-    for (size_t s = 0; s < stage_ms_.size(); ++s) {
-      char part[96];
-      std::snprintf(part, sizeof(part), "%s%s %.1f ms (%.3f per it.)", s ? ", " : "",
-                    detail::stage_name(static_cast<detail::Stage>(s)), stage_ms_[s],
-                    stage_passes_ ? stage_ms_[s] / static_cast<double>(stage_passes_) : 0.0);
-      line += part;
-    }
-    std::fprintf(stderr, "CUDA training engine, GPU time by stage over %zu iterations (%.1f ms): %s\n", stage_passes_,
-                 total, line.c_str());
+    clock_.collect();
+    std::fprintf(stderr, "CUDA training engine, GPU time by stage over %s\n", clock_.summary().c_str());
   }
 
   std::vector<double> run(const std::vector<gs::TrainingView>& views, const std::vector<gs::TrainingStep>& steps,
@@ -177,7 +165,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     download(&host_sums, sums, 3 * steps.size(), stream);
     clock_.end(detail::Stage::kDownload, stream);
     check(cudaStreamSynchronize(stream), "training batch");
-    collect_stage_times();
+    clock_.collect();
     for (size_t k = 0; k < steps.size(); ++k) {
       losses[k] = host_sums[3 * k] * rgb_norm[k] + host_sums[3 * k + 1] * depth_norm[k] +
                   host_sums[3 * k + 2] * ins_norm[k];
@@ -217,17 +205,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     cache_ = std::move(kept);
   }
 
-  void collect_stage_times() {
-    if (!clock_.enabled()) return;
-    size_t passes = 0;
-    const auto ms = clock_.take(&passes);
-    for (size_t s = 0; s < ms.size(); ++s) stage_ms_[s] += ms[s];
-    stage_passes_ += passes;
-  }
-
   detail::StageClock clock_;  // before pipe_: the pipeline holds a pointer to it
-  std::array<double, detail::StageClock::kStages> stage_ms_{};
-  size_t stage_passes_ = 0;
   detail::RasterPipeline pipe_;
   std::map<uint64_t, std::unique_ptr<CachedView>> cache_;
   std::shared_ptr<detail::ResidentMap> resident_;  // shared with the backend's rasteriser

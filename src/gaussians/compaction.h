@@ -4,11 +4,11 @@
 // Gaussians the map and its optimiser state are about 200 MB to move, 60 ms on one core.
 
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <functional>
-#include <thread>
 #include <vector>
+
+#include "parallel.h"
 
 namespace dqo::gs::detail {
 
@@ -34,17 +34,8 @@ class Compaction {
   }
   void run() {
     // Small maps on the calling thread: starting threads would cost more than the copies.
-    const size_t threads = remove_.size() < kThreadedFrom
-                               ? 1
-                               : std::min<size_t>(jobs_.size(), std::max(1u, std::thread::hardware_concurrency()));
-    std::atomic<size_t> next{0};
-    auto work = [&] {
-      for (size_t k = next.fetch_add(1); k < jobs_.size(); k = next.fetch_add(1)) jobs_[k]();
-    };
-    std::vector<std::thread> pool;
-    for (size_t t = 1; t < threads; ++t) pool.emplace_back(work);
-    work();
-    for (std::thread& t : pool) t.join();
+    const int threads = remove_.size() < kThreadedFrom ? 1 : resolve_threads(0);
+    parallel_for_dynamic(threads, jobs_.size(), [this](size_t k) { jobs_[k](); });
     jobs_.clear();
   }
 

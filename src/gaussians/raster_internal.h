@@ -5,16 +5,15 @@
 // sequenced by cpu_rasteriser.cpp.
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
-#include <thread>
 #include <vector>
 
 #include "dqo_map/gaussians/detail/cpu_rasteriser.h"
 #include "dqo_map/gaussians/math/alpha.h"
 #include "dqo_map/gaussians/math/composite.h"
 #include "dqo_map/gaussians/math/project_gaussian.h"
+#include "parallel.h"
 
 namespace dqo::gs::detail {
 
@@ -105,46 +104,6 @@ inline uint32_t splat_row_mask(const Splat<S>& s, int y, int tx0, int tx1) {
   const int xa = static_cast<int>(std::max(S(tx0), fxa)) - tx0;
   const int xb = static_cast<int>(std::min(S(tx1), fxb)) - tx0;
   return ((2u << (xb - xa)) - 1u) << xa;
-}
-
-// ---------------------------------------------------------------- threads
-inline int resolve_threads(int threads) {
-  if (threads > 0) return threads;
-  const unsigned hw = std::thread::hardware_concurrency();
-  return hw ? static_cast<int>(hw) : 1;
-}
-
-// Runs fn(t) for t in [0, threads) on `threads` threads (the caller's among them) and joins.
-template <typename F>
-void run_on_threads(int threads, F&& fn) {
-  if (threads <= 1) {
-    fn(0);
-    return;
-  }
-  std::vector<std::thread> pool;
-  pool.reserve(threads - 1);
-  for (int t = 1; t < threads; ++t) pool.emplace_back([&fn, t] { fn(t); });
-  fn(0);
-  for (std::thread& th : pool) th.join();
-}
-
-// fn(i) for i in [0, n), items handed out one at a time (results must not depend on which thread
-// ran an item).
-template <typename F>
-void parallel_for_dynamic(int threads, size_t n, F&& fn) {
-  std::atomic<size_t> next{0};
-  run_on_threads(std::min<int>(threads, static_cast<int>(std::max<size_t>(n, 1))), [&](int) {
-    for (size_t i = next.fetch_add(1); i < n; i = next.fetch_add(1)) fn(i);
-  });
-}
-
-// fn(begin, end) over contiguous chunks of [0, n) (elementwise work, any thread count).
-template <typename F>
-void parallel_for_chunks(int threads, size_t n, F&& fn) {
-  const size_t chunk = 4096;
-  const size_t chunks = (n + chunk - 1) / chunk;
-  parallel_for_dynamic(threads, chunks,
-                       [&](size_t c) { fn(c * chunk, std::min(n, (c + 1) * chunk)); });
 }
 
 }  // namespace dqo::gs::detail

@@ -9,7 +9,7 @@
 #include <utility>
 
 #include "compaction.h"
-#include "raster_internal.h"
+#include "parallel.h"
 
 namespace dqo::gs {
 namespace {
