@@ -21,15 +21,6 @@ constexpr float kNormaliseMinAlpha = 1e-6f;
 
 constexpr unsigned kFull = 0xffffffffu;
 
-// DQO_BACKWARD_BLOCK_SUMS=1 (a compile-time variant, off by default until measured on a GPU): the
-// warps' sums of a batch's splats are added in shared memory, and each splat's block total goes to
-// global memory once per tile (ten atomics against up to eighty, one set per warp). The atomics on
-// the same Gaussian from a tile's eight warps are what this saves; the shared-memory atomics and
-// a barrier per batch are what it costs.
-#ifndef DQO_BACKWARD_BLOCK_SUMS
-#define DQO_BACKWARD_BLOCK_SUMS 0
-#endif
-
 // One step of a warp's reduce-scatter: each lane keeps half of its `2 half` partial sums (the upper
 // half where `bit` of its lane is set) and adds its partner's of the same half.
 template <int kHalf>
@@ -46,7 +37,6 @@ __device__ __forceinline__ void reduce_scatter_step(float* v, int lane, int bit)
 // The warp's sums of the ten Grad2D values into `dst` (one Gaussian's): a reduce-scatter (16
 // shuffles, against 50 for ten separate tree sums) that leaves component c's total in lanes 2c and
 // 2c + 1, so ten lanes add their component at once instead of one lane adding ten in turn.
-// `dst` is global memory, or a shared-memory row with DQO_BACKWARD_BLOCK_SUMS.
 __device__ __forceinline__ void warp_add_grad2d(const Grad2D& g, float* dst) {
   static_assert(sizeof(Grad2D) == 10 * sizeof(float), "Grad2D is ten floats");
   const int lane = static_cast<int>(threadIdx.x % 32);
@@ -117,9 +107,6 @@ __global__ void __launch_bounds__(kThreads)
 
   __shared__ DeviceSplat batch[kThreads];
   __shared__ uint32_t batch_id[kThreads];
-#if DQO_BACKWARD_BLOCK_SUMS
-  __shared__ float block_sum[kThreads][10];  // the batch's splats' sums over the tile
-#endif
   const uint2 range = ranges[tile];
   // Positions [0, last) of the list, back to front, kThreads at a time.
   for (int end = static_cast<int>(last); end > 0; end -= kThreads) {
@@ -130,10 +117,6 @@ __global__ void __launch_bounds__(kThreads)
       batch_id[threadIdx.x] = sorted_ids[range.x + k];
       batch[threadIdx.x] = splats[batch_id[threadIdx.x]];
     }
-#if DQO_BACKWARD_BLOCK_SUMS
-#pragma unroll
-    for (int c = 0; c < 10; ++c) block_sum[threadIdx.x][c] = 0.f;
-#endif
     __syncthreads();
     for (int pos = end - 1; pos >= begin; --pos) {
       const DeviceSplat& s = batch[pos - begin];
@@ -164,23 +147,9 @@ __global__ void __launch_bounds__(kThreads)
         }
       }
       // Warps where no pixel took part skip the sums (most, for small Gaussians).
-#if DQO_BACKWARD_BLOCK_SUMS
-      if (__any_sync(kFull, contributes)) warp_add_grad2d(g, block_sum[pos - begin]);
-#else
       if (__any_sync(kFull, contributes))
         warp_add_grad2d(g, reinterpret_cast<float*>(&grad2d[batch_id[pos - begin]]));
-#endif
     }
-#if DQO_BACKWARD_BLOCK_SUMS
-    // The batch's totals out: thread j adds splat j's (its non-zero components).
-    __syncthreads();
-    if (k < end) {
-      float* dst = reinterpret_cast<float*>(&grad2d[batch_id[threadIdx.x]]);
-#pragma unroll
-      for (int c = 0; c < 10; ++c)
-        if (block_sum[threadIdx.x][c] != 0.f) atomicAdd(dst + c, block_sum[threadIdx.x][c]);
-    }
-#endif
   }
 }
 
