@@ -67,11 +67,19 @@ class CudaRasteriser final : public gs::Rasteriser {
     const detail::ForwardImages& img = pipe_.images();
     out->width = camera.width;
     out->height = camera.height;
-    download(&out->rgb, img.rgb, 3 * pixels, stream);
-    download(&out->depth, img.depth, pixels, stream);
-    download(&out->alpha, img.alpha, pixels, stream);
-    download(&out->ins, img.ins, pixels, stream);
-    download(&out->dominant_id, img.dominant_id, pixels, stream);
+    // The images asked for come down; the others are left empty (RenderSettings::outputs).
+    const auto wanted = [&](gs::RenderImage bit) { return (settings.outputs & bit) != 0; };
+    const auto bring = [&](auto* host, const auto* device, size_t count, gs::RenderImage bit) {
+      if (wanted(bit))
+        download(host, device, count, stream);
+      else
+        host->clear();
+    };
+    bring(&out->rgb, img.rgb, 3 * pixels, gs::kRenderRgb);
+    bring(&out->depth, img.depth, pixels, gs::kRenderDepth);
+    bring(&out->alpha, img.alpha, pixels, gs::kRenderAlpha);
+    bring(&out->ins, img.ins, pixels, gs::kRenderIns);
+    bring(&out->dominant_id, img.dominant_id, pixels, gs::kRenderDominantId);
     pipe_.mark(5);
     check(cudaStreamSynchronize(stream), "compositing");
     timings_ = ForwardTimings{pipe_.ms_between(0, 1), pipe_.project_ms(), pipe_.bin_ms(), pipe_.composite_ms(),
@@ -114,22 +122,24 @@ class CudaRasteriser final : public gs::Rasteriser {
     const detail::DeviceAttributeGradients d = gradients_.get(n);
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, T_cw, settings.near);
     pipe_.backward(gaussians_, cam, go, d);
-    // All five (or the colour's alone) down, one wait, then added (MapGradients accumulates).
+    // All five (or the colour's alone) down, one wait, then added (MapGradients accumulates);
+    // an array left empty (or of another size) is sized zero-filled first, so the gradient
+    // comes down straight into it (0 + g is g).
     const int first = grad_map->colour_only ? 4 : 0;
-    if (grad_map->colour_only) {
-      if (grad_map->colour.size() != 3 * n) grad_map->colour.assign(3 * n, 0.f);
-    } else if (grad_map->position.size() != 3 * n) {
-      grad_map->resize_for(map);
-    }
     std::vector<float> host[5];
     const std::pair<const float*, size_t> blocks[] = {
         {d.position, 3 * n}, {d.log_scale, 3 * n}, {d.rotation, 4 * n}, {d.opacity, n}, {d.colour, 3 * n}};
     std::vector<float>* dst[5] = {&grad_map->position, &grad_map->log_scale, &grad_map->rotation,
                                   &grad_map->opacity, &grad_map->colour};
-    for (int b = first; b < 5; ++b) download(&host[b], blocks[b].first, blocks[b].second, stream);
+    bool direct[5] = {false, false, false, false, false};
+    for (int b = first; b < 5; ++b) {
+      direct[b] = dst[b]->size() != blocks[b].second;
+      download(direct[b] ? dst[b] : &host[b], blocks[b].first, blocks[b].second, stream);
+    }
     check(cudaStreamSynchronize(stream), "gradients");
     for (int b = first; b < 5; ++b)
-      for (size_t k = 0; k < host[b].size(); ++k) (*dst[b])[k] += host[b][k];
+      if (!direct[b])
+        for (size_t k = 0; k < host[b].size(); ++k) (*dst[b])[k] += host[b][k];
     timings_.backward_ms = pipe_.backward_ms();
   }
 

@@ -55,9 +55,18 @@ void ResidentMap::sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& ad
   send_tail(&type_, map.types(), from, n, 1, "types", stream);
   const gs::GaussianAdam::Moments* moments[4] = {&st.position, &st.log_scale, &st.rotation, &st.colour};
   const size_t width[4] = {3, 3, 4, 3};
+  // Moments the host does not keep (GaussianAdam::keep_moments_on_host) start at zero here.
+  auto moments_tail = [&](GrowingBuffer<float>* buf, const std::vector<float>& host, size_t w) {
+    if (!host.empty() || adam.moments_on_host()) {
+      send_tail(buf, host, from, n, w, "Adam moments", stream);
+      return;
+    }
+    float* d = buf->reserve(n * w, from * w, "Adam moments", stream);
+    if (n > from) check(cudaMemsetAsync(d + from * w, 0, (n - from) * w * sizeof(float), stream), "Adam moments");
+  };
   for (int a = 0; a < 4; ++a) {
-    send_tail(&m_[a], moments[a]->m, from, n, width[a], "Adam moments", stream);
-    send_tail(&v_[a], moments[a]->v, from, n, width[a], "Adam moments", stream);
+    moments_tail(&m_[a], moments[a]->m, width[a]);
+    moments_tail(&v_[a], moments[a]->v, width[a]);
   }
   send_tail(&steps_, st.steps, from, n, 1, "Adam steps", stream);
   // The flags the host sets itself, whole.
@@ -142,8 +151,10 @@ void ResidentMap::download_optimiser(gs::GaussianAdam* adam, cudaStream_t stream
   const size_t n = count_;
   gs::GaussianAdam::State& st = adam->mutable_state();
   if (!valid_ || st.steps.size() < n) throw std::logic_error("resident map: the optimiser state is not the one held");
-  // The first n Gaussians' (those appended since keep the host's: zero, never stepped).
+  // The first n Gaussians' (those appended since keep the host's: zero, never stepped). Moments
+  // the host does not keep are sized for its map first (a copy, until the map changes).
   auto prefix = [&](std::vector<float>* host, const float* device, size_t width) {
+    if (!adam->moments_on_host() && host->size() != width * st.steps.size()) host->assign(width * st.steps.size(), 0.f);
     if (host->size() < width * n) throw std::logic_error("resident map: Adam moments not sized for the map");
     if (n) check(cudaMemcpyAsync(host->data(), device, width * n * sizeof(float), cudaMemcpyDeviceToHost, stream),
                  "optimiser state");

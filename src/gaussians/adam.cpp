@@ -2,13 +2,32 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "compaction.h"
 #include "dqo_map/gaussians/math/adam_step.h"
 
 namespace dqo::gs {
+
+void GaussianAdam::keep_moments_on_host(bool keep) {
+  keep_moments_ = keep;
+  if (!keep) drop_moments();
+}
+
+void GaussianAdam::drop_moments() {
+  for (Moments* mo : {&s_.position, &s_.log_scale, &s_.rotation, &s_.opacity, &s_.colour}) {
+    mo->m.clear();
+    mo->v.clear();
+  }
+}
+
 void GaussianAdam::resize_for(const GaussianMap& map) {
   const size_t n = map.size();
+  if (!keep_moments_) {
+    if (s_.steps.size() != n) drop_moments();  // a fetched copy is stale once the map changed
+    s_.steps.resize(n, 0);
+    return;
+  }
   auto grow = [n](Moments* mo, size_t width) {
     mo->m.resize(n * width, 0.f);
     mo->v.resize(n * width, 0.f);
@@ -23,6 +42,12 @@ void GaussianAdam::resize_for(const GaussianMap& map) {
 
 void GaussianAdam::remove_if(const std::vector<uint8_t>& remove) {
   detail::Compaction c(remove);
+  if (!keep_moments_) {
+    drop_moments();
+    c.add(&s_.steps, 1);
+    c.run();
+    return;
+  }
   auto shrink = [&c](Moments* mo, size_t width) {
     c.add(&mo->m, width);
     c.add(&mo->v, width);
@@ -43,6 +68,7 @@ void GaussianAdam::reset() {
 
 void GaussianAdam::step(const MapGradients& grad, const std::vector<uint8_t>& update,
                         GaussianMap* map) {
+  if (!keep_moments_) throw std::logic_error("GaussianAdam::step: the moments are kept by an engine");
   resize_for(*map);
   const size_t n = map->size();
   const Params& p = params_;

@@ -31,7 +31,10 @@ GaussianTrainer::GaussianTrainer(const Params& params, std::unique_ptr<Rasterise
       rasteriser_(rasteriser ? std::move(rasteriser) : make_cpu_rasteriser(0)),
       engine_(std::move(engine)),
       adam_(params.adam),
-      rng_(params.seed) {}
+      rng_(params.seed) {
+  // The engine keeps the optimiser's moments on its device; the host's would only be compacted.
+  if (uses_engine()) adam_.keep_moments_on_host(false);
+}
 
 bool GaussianTrainer::uses_engine() const {
   return engine_ && params_.lambda_ssim <= 0.f && !params_.train_per_label && params_.adam.lr_opacity <= 0.f;
@@ -290,7 +293,7 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   }
   MapGradients& g = scratch_.review;
   g.colour_only = true;  // a GPU backend then brings back 3 of the 14 values per Gaussian
-  g.colour.assign(3 * map_.size(), 0.f);  // backward() adds
+  g.colour.clear();  // backward() sizes it, zero-filled, and adds
   const SE3 T_cw = kf.T_wc.inverse();
   rasteriser_->backward(map_, kf.camera, T_cw, settings(0, false), state, probe, &g);
 
@@ -358,6 +361,7 @@ void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
 
 RenderSettings GaussianTrainer::mask_settings(const StoredKeyframe& kf) const {
   RenderSettings s = settings(0, false);
+  s.outputs = kRenderRgb | kRenderDepth | kRenderAlpha | kRenderIns;  // add_gaussians' masks
   if (!kf.objects.empty()) s.ins_labels = kf.labels.data.data();
   return s;
 }
@@ -390,7 +394,9 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
       const std::vector<float>* ins = &out->ins;
       if (!ins_current) {
         sync_engine();
-        rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), mask_settings(kf), &rendered, nullptr);
+        RenderSettings ins_only = mask_settings(kf);
+        ins_only.outputs = kRenderIns;
+        rasteriser_->forward(map_, kf.camera, kf.T_wc.inverse(), ins_only, &rendered, nullptr);
         ins = &rendered.ins;
       }
       detail::parallel_for_chunks(threads, n, [&](size_t begin, size_t end) {
@@ -659,8 +665,9 @@ void GaussianTrainer::prune(KeyframeReport* report) {
     RenderOutput out;
     std::unique_ptr<RenderState> state;
     sync_engine();
-    rasteriser_->forward(map_, newest.camera, newest.T_wc.inverse(), settings(0, false), &out,
-                         &state);
+    RenderSettings state_only = settings(0, false);
+    state_only.outputs = 0;  // the review reads the pass's state alone
+    rasteriser_->forward(map_, newest.camera, newest.T_wc.inverse(), state_only, &out, &state);
     review_gaussians(newest, *state, true);
     std::vector<uint32_t> order;
     order.reserve(kept);

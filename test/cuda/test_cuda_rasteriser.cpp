@@ -107,6 +107,16 @@ TEST(CudaRasteriser, ForwardMatchesTheCpuReference) {
     double total = 0.0;
     for (float v : b.ins) total += v;
     EXPECT_GT(total, 10.0) << "seed " << seed;
+    // Only the images asked for come back, the same as in a full render; the others are empty
+    // (the poison is gone too: nothing stale is handed out).
+    gs::RenderSettings some = per_label;
+    some.outputs = gs::kRenderIns | gs::kRenderDepth;
+    gs::RenderOutput c;
+    poison(&c, pixels);
+    gpu->forward(map, cam, T_cw, some, &c, nullptr);
+    expect_close(c.ins, b.ins, "ins alone", seed);
+    expect_close(c.depth, b.depth, "depth alone", seed);
+    EXPECT_TRUE(c.rgb.empty() && c.alpha.empty() && c.dominant_id.empty()) << "seed " << seed;
   }
 }
 
@@ -185,6 +195,15 @@ TEST(CudaRasteriser, BackwardMatchesTheCpuReference) {
       double norm = 0;
       for (float v : gb.position) norm += double(v) * v;
       EXPECT_GT(norm, 0.0) << "the gradients are not all zero";
+      // A second backward adds to the first (the first came down straight into the empty arrays).
+      gs::MapGradients twice = ga;
+      gpu->backward(map, cam, T_cw, settings, *sa, go, &twice);
+      size_t not_doubled = 0;
+      for (size_t i = 0; i < ga.position.size(); ++i)
+        not_doubled += std::abs(twice.position[i] - 2.f * ga.position[i]) > 1e-5f * (1.f + std::abs(ga.position[i]));
+      for (size_t i = 0; i < ga.colour.size(); ++i)
+        not_doubled += std::abs(twice.colour[i] - 2.f * ga.colour[i]) > 1e-5f * (1.f + std::abs(ga.colour[i]));
+      EXPECT_EQ(not_doubled, 0u);
       std::printf("seed %llu mode %d: relative L2 position %.2e log-scale %.2e rotation %.2e opacity %.2e colour %.2e\n",
                   static_cast<unsigned long long>(seed), mode, relative_l2(ga.position, gb.position),
                   relative_l2(ga.log_scale, gb.log_scale), relative_l2(ga.rotation, gb.rotation),

@@ -133,5 +133,74 @@ TEST(ResidentMap, FollowsTheHostsRemovalsAppendsAndFlags) {
   cudaStreamDestroy(stream);
 }
 
+// Moments the host does not keep (the trainer's setting with an engine): the device keeps its
+// own through appends and removals, starts the new Gaussians' at zero, and hands a copy back.
+TEST(ResidentMap, KeepsTheMomentsTheHostLeavesToIt) {
+  if (!gpu_available()) GTEST_SKIP() << "no GPU";
+  cudaStream_t stream = nullptr;
+  ASSERT_EQ(cudaStreamCreate(&stream), cudaSuccess);
+  for (uint64_t seed : {4u, 5u}) {
+    const std::string where = "seed " + std::to_string(seed);
+    std::mt19937_64 rng(seed);
+    gs::GaussianMap map;
+    gs::GaussianAdam adam;
+    for (int i = 0; i < 3000; ++i) map.add(random_gaussian(rng));
+    randomise_state(&map, &adam, 0, rng);
+    detail::ResidentMap resident;
+    resident.sync_up(map, adam, stream);
+    gs::GaussianAdam::State expected = adam.state();  // what the device holds now
+
+    adam.keep_moments_on_host(false);
+    EXPECT_TRUE(adam.state().colour.m.empty()) << where;
+    // Appended Gaussians: zero moments on the device; the host keeps steps only.
+    for (int i = 0; i < 100; ++i) map.add(random_gaussian(rng));
+    adam.resize_for(map);
+    EXPECT_EQ(adam.state().steps.size(), map.size()) << where;
+    EXPECT_TRUE(adam.state().position.m.empty()) << where;
+    resident.sync_up(map, adam, stream);
+    for (gs::GaussianAdam::Moments* m : {&expected.position, &expected.log_scale, &expected.rotation, &expected.colour}) {
+      const size_t width = m->m.size() / 3000;
+      m->m.resize(map.size() * width, 0.f);
+      m->v.resize(map.size() * width, 0.f);
+    }
+    expected.steps.resize(map.size(), 0u);
+    // Removals: the device compacts its moments, the host its steps.
+    std::vector<uint8_t> remove(map.size(), 0);
+    for (uint8_t& r : remove) r = uniform(rng, 0, 1) < 0.2;
+    map.remove_if(remove);
+    adam.remove_if(remove);
+    resident.remove_if(remove, stream);
+    resident.sync_up(map, adam, stream);
+    const auto keep = [&](std::vector<float>* v, size_t width) {
+      std::vector<float> out;
+      for (size_t i = 0; i < remove.size(); ++i)
+        if (!remove[i]) out.insert(out.end(), v->begin() + i * width, v->begin() + (i + 1) * width);
+      *v = out;
+    };
+    const size_t width[4] = {3, 3, 4, 3};
+    gs::GaussianAdam::Moments* em[4] = {&expected.position, &expected.log_scale, &expected.rotation, &expected.colour};
+    for (int a = 0; a < 4; ++a) keep(&em[a]->m, width[a]), keep(&em[a]->v, width[a]);
+    // A copy comes back on request, sized for the map, equal to the device's, bit for bit.
+    resident.download_optimiser(&adam, stream);
+    ASSERT_EQ(cudaStreamSynchronize(stream), cudaSuccess);
+    const gs::GaussianAdam::State& st = adam.state();
+    const gs::GaussianAdam::Moments* got[4] = {&st.position, &st.log_scale, &st.rotation, &st.colour};
+    size_t nonzero = 0;
+    for (int a = 0; a < 4; ++a) {
+      EXPECT_TRUE(bits_equal(got[a]->m, em[a]->m)) << where << ", first moments of attribute " << a;
+      EXPECT_TRUE(bits_equal(got[a]->v, em[a]->v)) << where << ", second moments of attribute " << a;
+      for (float x : got[a]->v) nonzero += x != 0.f;
+    }
+    EXPECT_GT(nonzero, map.size()) << where << ": the random moments survived";
+    // The copy is dropped once the map changes again.
+    map.add(random_gaussian(rng));
+    adam.resize_for(map);
+    EXPECT_TRUE(adam.state().rotation.v.empty()) << where;
+    gs::MapGradients grad;
+    EXPECT_THROW(adam.step(grad, std::vector<uint8_t>(map.size(), 1), &map), std::logic_error) << where;
+  }
+  cudaStreamDestroy(stream);
+}
+
 }  // namespace
 }  // namespace dqo::cuda

@@ -178,6 +178,34 @@ TEST(Adam, StateFollowsRemovalsAndAdditions) {
   }
 }
 
+// With the moments left to an engine, the host keeps the step counts alone, in step with the map.
+TEST(Adam, MomentsLeftToAnEngine) {
+  std::mt19937 rng(5);
+  GaussianMap map = random_map(6, &rng);
+  GaussianAdam adam;
+  adam.step(random_gradients(map, &rng), std::vector<uint8_t>{1, 0, 1, 1, 0, 1}, &map);
+  ASSERT_EQ(adam.state().position.m.size(), 18u);
+  adam.keep_moments_on_host(false);
+  for (const auto* mo : {&adam.state().position, &adam.state().log_scale, &adam.state().rotation,
+                         &adam.state().opacity, &adam.state().colour}) {
+    EXPECT_TRUE(mo->m.empty() && mo->v.empty());
+  }
+  const std::vector<uint8_t> remove = {1, 0, 0, 1, 0, 0};
+  map.remove_if(remove);
+  adam.remove_if(remove);
+  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{0, 1, 0, 1}));
+  map.add(GaussianInit{});
+  adam.resize_for(map);
+  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{0, 1, 0, 1, 0}));
+  EXPECT_TRUE(adam.state().colour.v.empty());
+  EXPECT_THROW(adam.step(random_gradients(map, &rng), std::vector<uint8_t>(5, 1), &map), std::logic_error);
+  // Kept again: zero moments sized for the map, and steps run.
+  adam.keep_moments_on_host(true);
+  adam.step(random_gradients(map, &rng), std::vector<uint8_t>(5, 1), &map);
+  EXPECT_EQ(adam.state().rotation.v.size(), 20u);
+  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{1, 2, 1, 2, 1}));
+}
+
 TEST(Adam, OpacityThroughLogitWhenTrainable) {
   std::mt19937 rng(5);
   GaussianMap map = random_map(2, &rng);

@@ -42,6 +42,13 @@ class GaussianAdam {
 
   // Grows (zero moments for the new Gaussians, which are appended) or shrinks to map.size().
   void resize_for(const GaussianMap& map);
+  // false: an engine that runs the steps on a device keeps the moments (cuda/train/). The host
+  // then keeps each Gaussian's step count alone; the moments stay empty, or hold the latest copy
+  // fetched from the engine until the map next changes (resize_for, remove_if). That spares the
+  // host 112 bytes per Gaussian and their compaction at every pruning (5 ms a keyframe at 1.3 M
+  // Gaussians). step() refuses to run without them.
+  void keep_moments_on_host(bool keep);
+  bool moments_on_host() const { return keep_moments_; }
   // Drops the state of every Gaussian i with remove[i] != 0, as GaussianMap::remove_if does.
   void remove_if(const std::vector<uint8_t>& remove);
   void reset();
@@ -63,8 +70,11 @@ class GaussianAdam {
   State& mutable_state() { return s_; }  // keep it sized for the map (resize_for)
 
  private:
+  void drop_moments();
+
   Params params_;
   State s_;
+  bool keep_moments_ = true;
 };
 
 }  // namespace dqo::gs

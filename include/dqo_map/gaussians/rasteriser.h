@@ -23,7 +23,21 @@
 
 namespace dqo::gs {
 
+// RenderOutput's images, as bits of RenderSettings::outputs.
+enum RenderImage : uint8_t {
+  kRenderRgb = 1,
+  kRenderDepth = 2,
+  kRenderAlpha = 4,
+  kRenderIns = 8,
+  kRenderDominantId = 16,
+  kRenderAll = 31,
+};
+
 struct RenderSettings {
+  // The images the caller reads (RenderImage bits). The others may be left empty: a device
+  // backend then does not bring them back (a million-pixel render is 23 MB over the bus, the
+  // masks' second render needs 4 of them). The CPU rasteriser fills all of them.
+  uint8_t outputs = kRenderAll;
   bool normalise_depth = false;  // depth / accumulated alpha instead of Σ T α z
   // Depth of the one surface the pixel sees instead (takes precedence over normalise_depth): the
   // normalised depth over the run of contributors, split where consecutive ones lie more than
