@@ -5,8 +5,6 @@
 #include <cmath>
 #include <cstddef>
 
-#include "parallel.h"
-
 namespace dqo::gs {
 namespace {
 
@@ -65,10 +63,7 @@ void blur(const std::vector<double>& in, int w, int h, std::vector<double>* out)
 
 ImageF to_float_rgb(const ImageRgb8& rgb) {
   ImageF out(rgb.width, rgb.height, rgb.channels);
-  // Over threads: a keyframe's 2.4 million values took 3 ms on one core, every keyframe.
-  detail::parallel_for_chunks(detail::resolve_threads(0), rgb.data.size(), [&](size_t begin, size_t end) {
-    for (size_t i = begin; i < end; ++i) out.data[i] = rgb.data[i] * (1.f / 255.f);
-  });
+  for (size_t i = 0; i < rgb.data.size(); ++i) out.data[i] = rgb.data[i] * (1.f / 255.f);
   return out;
 }
 

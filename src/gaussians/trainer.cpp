@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "compaction.h"
@@ -698,15 +699,29 @@ const GaussianAdam::State& GaussianTrainer::adam_state() {
 
 size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
   sync_state();
-  const size_t removed = map_.remove_if(remove);
+  if (remove.size() != map_.size())
+    throw std::invalid_argument("GaussianTrainer::remove_if: mask has " + std::to_string(remove.size()) +
+                                " entries for " + std::to_string(map_.size()) + " Gaussians");
+  const size_t removed = static_cast<size_t>(std::count_if(remove.begin(), remove.end(), [](uint8_t r) { return r != 0; }));
   if (removed == 0) return 0;
-  if (engine_) engine_->map_removed(remove);
-  adam_.remove_if(remove);
-  detail::Compaction c(remove);
-  c.add(&invisible_count_, 1);
-  c.add(&relabel_votes_, 1);
-  c.add(&usefulness_, 1);
-  c.run();
+  // The map's arrays, the optimiser's step counts, the trainer's own and the engine's copy at
+  // once: each compaction runs its arrays on threads, but the largest array bounds it, so one
+  // after the other they took 5 + 2 + 2.5 + 1.5 ms a keyframe at 1.3 M Gaussians.
+  detail::run_on_threads(4, [&](int job) {
+    if (job == 0) {
+      map_.remove_if(remove);
+    } else if (job == 1) {
+      adam_.remove_if(remove);
+    } else if (job == 2) {
+      if (engine_) engine_->map_removed(remove);
+    } else {
+      detail::Compaction c(remove);
+      c.add(&invisible_count_, 1);
+      c.add(&relabel_votes_, 1);
+      c.add(&usefulness_, 1);
+      c.run();
+    }
+  });
   return removed;
 }
 
