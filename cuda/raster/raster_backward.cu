@@ -155,16 +155,31 @@ __global__ void __launch_bounds__(kThreads)
 
 __global__ void project_vjp_kernel(DeviceGaussians g, gs::CameraView<float> cam, const uint32_t* tile_count,
                                    const Grad2D* grad2d, float* grad_position, float* grad_log_scale,
-                                   float* grad_rotation, float* grad_opacity, float* grad_colour) {
+                                   float* grad_rotation, float* grad_opacity, float* grad_colour, bool zero_culled) {
   const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (i >= g.count || tile_count[i] == 0) return;  // culled: no gradient
+  if (i >= g.count) return;
+  if (tile_count[i] == 0) {  // culled: no gradient (zeros, or left as it is)
+    if (!zero_culled) return;
+    grad_opacity[i] = 0.f;
+    for (int c = 0; c < 3; ++c) grad_colour[3 * i + c] = grad_position[3 * i + c] = grad_log_scale[3 * i + c] = 0.f;
+    for (int c = 0; c < 4; ++c) grad_rotation[4 * i + c] = 0.f;
+    return;
+  }
   const Grad2D t = grad2d[i];
-  grad_opacity[i] += t.opacity;
-  for (int c = 0; c < 3; ++c) grad_colour[3 * i + c] += t.colour[c];
+  // Written, not added: the arrays need no zeroing for the Gaussians a pass reached.
+  float v_position[3] = {0.f, 0.f, 0.f}, v_log_scale[3] = {0.f, 0.f, 0.f};
+  float v_rotation[4] = {0.f, 0.f, 0.f, 0.f};
   gs::project_gaussian_vjp(g.position + 3 * i, g.log_scale + 3 * i, g.rotation + 4 * i, cam,
                            gs::Vec2<float>{t.mean2d[0], t.mean2d[1]}, gs::Sym2<float>{t.conic[0], t.conic[1], t.conic[2]},
-                           t.depth, grad_position + 3 * i, grad_log_scale + 3 * i, grad_rotation + 4 * i,
-                           static_cast<gs::Mat3<float>*>(nullptr), static_cast<gs::Vec3<float>*>(nullptr));
+                           t.depth, v_position, v_log_scale, v_rotation, static_cast<gs::Mat3<float>*>(nullptr),
+                           static_cast<gs::Vec3<float>*>(nullptr));
+  grad_opacity[i] = t.opacity;
+  for (int c = 0; c < 3; ++c) {
+    grad_colour[3 * i + c] = t.colour[c];
+    grad_position[3 * i + c] = v_position[c];
+    grad_log_scale[3 * i + c] = v_log_scale[c];
+  }
+  for (int c = 0; c < 4; ++c) grad_rotation[4 * i + c] = v_rotation[c];
 }
 
 }  // namespace
@@ -180,11 +195,12 @@ void launch_backward(int width, int height, const uint2* ranges, const uint32_t*
 
 void launch_project_vjp(const DeviceGaussians& g, const gs::CameraView<float>& cam, const uint32_t* tile_count,
                         const Grad2D* grad2d, float* grad_position, float* grad_log_scale, float* grad_rotation,
-                        float* grad_opacity, float* grad_colour, cudaStream_t stream) {
+                        float* grad_opacity, float* grad_colour, bool zero_culled, cudaStream_t stream) {
   if (g.count == 0) return;
   constexpr int kBlock = 256;
   project_vjp_kernel<<<static_cast<unsigned>((g.count + kBlock - 1) / kBlock), kBlock, 0, stream>>>(
-      g, cam, tile_count, grad2d, grad_position, grad_log_scale, grad_rotation, grad_opacity, grad_colour);
+      g, cam, tile_count, grad2d, grad_position, grad_log_scale, grad_rotation, grad_opacity, grad_colour,
+      zero_culled);
 }
 
 }  // namespace dqo::cuda::detail

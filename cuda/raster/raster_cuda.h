@@ -101,8 +101,10 @@ struct ForwardImages {
 
 // Stage 1: splats[i], rects[i] and tile_count[i] (0: culled) for every Gaussian.
 // ins_per_label: every object's opaque Gaussians count for `ins` (ForwardSettings::ins_labels).
+// zero_grad2d (may be null): zeroed for every Gaussian with tile_count > 0, for the backward.
 void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t ins_object, bool ins_per_label,
-                    DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, cudaStream_t stream);
+                    DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, Grad2D* zero_grad2d,
+                    cudaStream_t stream);
 // Stage 2: one (tile << 32 | depth bits, index) pair per Gaussian and tile it touches, written at
 // offsets[i] (the exclusive scan of tile_count), then (after the sort) each tile's range.
 void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
@@ -120,13 +122,14 @@ void launch_forward(int width, int height, const uint2* ranges, const uint32_t* 
                     const DeviceSplat* splats, const ForwardSettings& settings, const ForwardImages& out,
                     const ForwardState& state, cudaStream_t stream);
 // Stage 4: the tile lists walked back to front per pixel, gradients of each Gaussian's 2D
-// quantities summed into grad2d ([N], zeroed by the caller); then each Gaussian's through
-// project_gaussian_vjp() into the attribute gradients (added).
+// quantities summed into grad2d ([N], zero for the binned Gaussians); then each binned Gaussian's
+// through project_gaussian_vjp() into the attribute gradients (written; the culled ones' zeroed
+// with zero_culled, else left as they are).
 void launch_backward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
                      const DeviceSplat* splats, const ForwardSettings& settings, const ForwardState& state,
                      const ImageGradientsDevice& grad_out, Grad2D* grad2d, cudaStream_t stream);
 void launch_project_vjp(const DeviceGaussians& g, const gs::CameraView<float>& cam, const uint32_t* tile_count,
                         const Grad2D* grad2d, float* grad_position, float* grad_log_scale, float* grad_rotation,
-                        float* grad_opacity, float* grad_colour, cudaStream_t stream);
+                        float* grad_opacity, float* grad_colour, bool zero_culled, cudaStream_t stream);
 
 }  // namespace dqo::cuda::detail

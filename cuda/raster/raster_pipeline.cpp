@@ -49,8 +49,14 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   DeviceSplat* splats = splats_.ensure(n, "splats");
   TileRect* rects = rects_.ensure(n, "tile rectangles");
   uint32_t* tile_count = tile_count_.ensure(n + 1, "tile counts");
-  check(cudaMemsetAsync(tile_count, 0, (n + 1) * sizeof(uint32_t), stream_), "tile counts");
-  launch_project(g, cam, settings.ins_object, settings.ins_labels != nullptr, splats, rects, tile_count, stream_);
+  // The projection writes every Gaussian's count; the scan's extra last entry is zero.
+  check(cudaMemsetAsync(tile_count + n, 0, sizeof(uint32_t), stream_), "tile counts");
+  // For a backward pass: the 2D gradients' sums start at zero for the Gaussians it will reach (the
+  // binned ones), zeroed by the projection rather than all of them by a memset.
+  Grad2D* grad2d = keep_state ? grad2d_.ensure(n, "2D gradients") : nullptr;
+  grad2d_zeroed_ = keep_state;
+  launch_project(g, cam, settings.ins_object, settings.ins_labels != nullptr, splats, rects, tile_count, grad2d,
+                 stream_);
   check(cudaGetLastError(), "projection");
   mark(2);
   if (clock_) clock_->end(Stage::kProject, stream_);
@@ -114,24 +120,23 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
 }
 
 void RasterPipeline::backward(const DeviceGaussians& g, const gs::CameraView<float>& cam,
-                              const ImageGradientsDevice& grad_out, const DeviceAttributeGradients& out) {
+                              const ImageGradientsDevice& grad_out, const DeviceAttributeGradients& out,
+                              bool zero_culled) {
   if (!state_.t_final || g.count != n_ || cam.K.width != width_ || cam.K.height != height_) {
     throw std::invalid_argument(
         "CUDA rasteriser: backward() needs a forward pass that kept its state, on the same Gaussians and camera");
   }
   const size_t n = n_;
-  Grad2D* grad2d = grad2d_.ensure(n, "2D gradients");
-  check(cudaMemsetAsync(grad2d, 0, n * sizeof(Grad2D), stream_), "2D gradients");
+  Grad2D* grad2d = grad2d_.get();  // zeroed for the binned Gaussians by the forward pass ...
+  if (!grad2d_zeroed_)              // ... unless a backward pass of the same forward one ran before
+    check(cudaMemsetAsync(grad2d, 0, n * sizeof(Grad2D), stream_), "2D gradients");
+  grad2d_zeroed_ = false;
   mark(6);
   launch_backward(width_, height_, ranges_.get(), sorted_ids_.get(), splats_.get(), settings_, state_, grad_out,
                   grad2d, stream_);
   check(cudaGetLastError(), "backward");
-  const std::pair<float*, size_t> blocks[] = {
-      {out.position, 3 * n}, {out.log_scale, 3 * n}, {out.rotation, 4 * n}, {out.opacity, n}, {out.colour, 3 * n}};
-  for (const auto& [ptr, count] : blocks)
-    if (count) check(cudaMemsetAsync(ptr, 0, count * sizeof(float), stream_), "gradients");
   launch_project_vjp(g, cam, tile_count_.get(), grad2d, out.position, out.log_scale, out.rotation, out.opacity,
-                     out.colour, stream_);
+                     out.colour, zero_culled, stream_);
   check(cudaGetLastError(), "projection backward");
   mark(7);
   if (clock_) clock_->end(Stage::kBackward, stream_);

@@ -55,9 +55,14 @@ class RasterPipeline {
   size_t pairs() const { return pairs_; }
 
   // Gradients of the latest forward pass (made with keep_state, on the same `g` and camera) into
-  // `out` (sized for g.count; overwritten). Null output gradients count as zero.
+  // `out` (sized for g.count; overwritten: no memset). Null output gradients count as zero. The
+  // Gaussians the pass culled (tile_counts() 0) get zeros only with zero_culled; without, their
+  // entries are left as they were (a training step skips them by tile_counts(): 52 bytes per
+  // culled Gaussian not written per iteration).
   void backward(const DeviceGaussians& g, const gs::CameraView<float>& cam, const ImageGradientsDevice& grad_out,
-                const DeviceAttributeGradients& out);
+                const DeviceAttributeGradients& out, bool zero_culled = true);
+  // Per Gaussian, the tiles the latest forward pass binned it into (0: culled).
+  const uint32_t* tile_counts() const { return tile_count_.get(); }
 
   // GPU milliseconds of the latest forward pass's stages and of the latest backward pass.
   float project_ms() const { return ms_between(1, 2); }
@@ -93,6 +98,7 @@ class RasterPipeline {
   DeviceBuffer<uint32_t> n_contrib_;
   DeviceBuffer<gs::SurfaceAccum<float>> surface_;
   DeviceBuffer<Grad2D> grad2d_;
+  bool grad2d_zeroed_ = false;  // by the latest forward pass, and no backward one since
   void* scan_temp_ = nullptr;
   void* sort_temp_ = nullptr;
   size_t scan_temp_bytes_ = 0, sort_temp_bytes_ = 0;

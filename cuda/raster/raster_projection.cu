@@ -12,7 +12,7 @@ namespace dqo::cuda::detail {
 namespace {
 
 __global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uint32_t ins_object, bool ins_per_label,
-                               DeviceSplat* splats, TileRect* rects, uint32_t* tile_count) {
+                               DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, Grad2D* zero_grad2d) {
   const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i >= g.count) return;
   tile_count[i] = 0;
@@ -54,17 +54,19 @@ __global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uin
     for (int tx = t.x0; tx <= t.x1; ++tx)
       count += tile_reached(s, tx, ty, width, height) ? 1u : 0u;
   tile_count[i] = count;
+  if (zero_grad2d && count > 0) zero_grad2d[i] = Grad2D{};
 }
 
 }  // namespace
 
 void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t ins_object, bool ins_per_label,
-                    DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, cudaStream_t stream) {
+                    DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, Grad2D* zero_grad2d,
+                    cudaStream_t stream) {
   if (g.count == 0) return;
   constexpr int kBlock = 256;
   const unsigned blocks = static_cast<unsigned>((g.count + kBlock - 1) / kBlock);
-  project_kernel<<<blocks, kBlock, 0, stream>>>(g, cam, ins_object, ins_per_label, splats, rects,
-                                                      tile_count);
+  project_kernel<<<blocks, kBlock, 0, stream>>>(g, cam, ins_object, ins_per_label, splats, rects, tile_count,
+                                                zero_grad2d);
 }
 
 }  // namespace dqo::cuda::detail

@@ -151,8 +151,9 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       go.rgb = v_rgb;
       go.depth = v_depth;
       go.ins = v_ins;
-      pipe_.backward(g, cam, go, grad);
-      detail::launch_adam(t, grad.position, grad.log_scale, grad.rotation, grad.colour, rates, stream);
+      pipe_.backward(g, cam, go, grad, /*zero_culled=*/false);
+      detail::launch_adam(t, pipe_.tile_counts(), grad.position, grad.log_scale, grad.rotation, grad.colour, rates,
+                          stream);
       check(cudaGetLastError(), "Adam");
       clock_.end(detail::Stage::kAdam, stream);
     }

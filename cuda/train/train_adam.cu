@@ -17,10 +17,11 @@ __device__ bool any_nonzero(const float* g, int width) {
   return false;
 }
 
-__global__ void adam_kernel(DeviceTrainable t, const float* grad_position, const float* grad_log_scale,
-                            const float* grad_rotation, const float* grad_colour, AdamRates r) {
+__global__ void adam_kernel(DeviceTrainable t, const uint32_t* tile_count, const float* grad_position,
+                            const float* grad_log_scale, const float* grad_rotation, const float* grad_colour,
+                            AdamRates r) {
   const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (i >= t.count || t.stable[i]) return;
+  if (i >= t.count || t.stable[i] || tile_count[i] == 0) return;
   const float* gp = grad_position + 3 * i;
   const float* gs_ = grad_log_scale + 3 * i;
   const float* gq = grad_rotation + 4 * i;
@@ -49,12 +50,13 @@ __global__ void adam_kernel(DeviceTrainable t, const float* grad_position, const
 
 }  // namespace
 
-void launch_adam(const DeviceTrainable& t, const float* grad_position, const float* grad_log_scale,
-                 const float* grad_rotation, const float* grad_colour, const AdamRates& rates, cudaStream_t stream) {
+void launch_adam(const DeviceTrainable& t, const uint32_t* tile_count, const float* grad_position,
+                 const float* grad_log_scale, const float* grad_rotation, const float* grad_colour,
+                 const AdamRates& rates, cudaStream_t stream) {
   if (t.count == 0) return;
   constexpr int kBlock = 256;
   adam_kernel<<<static_cast<unsigned>((t.count + kBlock - 1) / kBlock), kBlock, 0, stream>>>(
-      t, grad_position, grad_log_scale, grad_rotation, grad_colour, rates);
+      t, tile_count, grad_position, grad_log_scale, grad_rotation, grad_colour, rates);
 }
 
 }  // namespace dqo::cuda::detail

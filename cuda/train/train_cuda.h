@@ -54,8 +54,11 @@ struct DeviceTrainable {
 };
 
 // One step on every unstable Gaussian with a non-zero gradient (GaussianTrainer::iterate's rule).
-void launch_adam(const DeviceTrainable& t, const float* grad_position, const float* grad_log_scale,
-                 const float* grad_rotation, const float* grad_colour, const AdamRates& rates, cudaStream_t stream);
+// tile_count: the pass's (RasterPipeline::tile_counts()); the Gaussians it culled have no gradient
+// and are skipped without reading theirs (left unzeroed by the backward pass).
+void launch_adam(const DeviceTrainable& t, const uint32_t* tile_count, const float* grad_position,
+                 const float* grad_log_scale, const float* grad_rotation, const float* grad_colour,
+                 const AdamRates& rates, cudaStream_t stream);
 
 // The resident map's remove_if (train_compact.cu). keep[i] = (remove[i] == 0) for i < n and
 // keep[n] = 0 (exclusive_scan() of n + 1 entries then ends in the count kept).
