@@ -94,6 +94,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     size_t total = 0;
     for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto* b : {&v_rgb_, &v_depth_, &v_ins_}) total += b->bytes();
+    total += rgb8_.bytes();
     return total + resident_->bytes() + gradients_.bytes() + pipe_.bytes() + sums_.bytes();
   }
 
@@ -195,7 +196,10 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       cv->pixels = pixels;
       for (const float d : view.depth->data) cv->valid_depth += valid_depth(d) ? 1 : 0;
       const cudaStream_t stream = pipe_.stream();
-      upload(&cv->rgb, view.rgb->data, "view images", stream);
+      // 8 bits up (a quarter of the floats' bytes), floats made here.
+      const uint8_t* rgb8 = upload(&rgb8_, view.rgb->data, "view images", stream);
+      detail::launch_unit_colours(3 * pixels, rgb8, cv->rgb.ensure(3 * pixels, "view images"), stream);
+      check(cudaGetLastError(), "view images");
       upload(&cv->depth, view.depth->data, "view images", stream);
       upload(&cv->labels, view.labels->data, "view images", stream);
       kept.emplace(view.key, std::move(cv));
@@ -212,6 +216,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   std::shared_ptr<detail::ResidentMap> resident_;  // shared with the backend's rasteriser
   detail::GradientBuffers gradients_;
   DeviceBuffer<float> v_rgb_, v_depth_, v_ins_;
+  DeviceBuffer<uint8_t> rgb8_;  // a view's 8-bit colours on their way up (stream-ordered reuse)
   DeviceBuffer<double> sums_;
 };
 

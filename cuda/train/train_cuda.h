@@ -32,6 +32,8 @@ struct LossFactors {
 void launch_losses(size_t pixels, const float* rgb, const float* depth, const float* ins, const DeviceView& view,
                    const LossFactors& f, float* grad_rgb, float* grad_depth, float* grad_ins, double* sums,
                    cudaStream_t stream);
+// The colour target of a view from its 8-bit image: value / 255, the float to_float_rgb() makes.
+void launch_unit_colours(size_t values, const uint8_t* in, float* out, cudaStream_t stream);
 
 struct AdamRates {
   float lr_position, lr_log_scale, lr_rotation, lr_colour;

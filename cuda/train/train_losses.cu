@@ -62,7 +62,17 @@ __global__ void __launch_bounds__(kBlock)
   }
 }
 
+__global__ void unit_colours_kernel(size_t values, const uint8_t* in, float* out) {
+  const size_t k = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k < values) out[k] = in[k] * (1.f / 255.f);  // an exact product's rounding: the host's float
+}
+
 }  // namespace
+
+void launch_unit_colours(size_t values, const uint8_t* in, float* out, cudaStream_t stream) {
+  if (values == 0) return;
+  unit_colours_kernel<<<static_cast<unsigned>((values + kBlock - 1) / kBlock), kBlock, 0, stream>>>(values, in, out);
+}
 
 void launch_losses(size_t pixels, const float* rgb, const float* depth, const float* ins, const DeviceView& view,
                    const LossFactors& f, float* grad_rgb, float* grad_depth, float* grad_ins, double* sums,

@@ -17,6 +17,9 @@ namespace {
 
 bool valid_depth(float d) { return std::isfinite(d) && d > 0.f; }
 
+// A colour channel in [0, 1], as to_float_rgb() makes it (the same float, bit for bit).
+float unit_colour(uint8_t v) { return v * (1.f / 255.f); }
+
 // Rotation (w, x, y, z) whose columns are the given orthonormal, right-handed axes.
 Eigen::Vector4f quaternion_of(const Eigen::Matrix3d& R) {
   const Eigen::Quaterniond q(R);
@@ -88,7 +91,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   kf.id = keyframe.id;
   kf.camera = keyframe.camera;
   kf.T_wc = keyframe.T_wc;
-  kf.rgb = to_float_rgb(keyframe.rgb);
+  kf.rgb = std::move(keyframe.rgb);
   kf.depth = std::move(keyframe.depth);
   kf.labels = std::move(keyframe.labels);
   kf.key = next_key_++;
@@ -228,6 +231,10 @@ double GaussianTrainer::optimise(int iterations) {
 std::vector<double> GaussianTrainer::train(int iterations) {
   if (iterations <= 0 || window_.empty()) return {};
   if (uses_engine()) return iterate_on_engine(iterations);
+  // The host's losses take the colours as floats, made once per keyframe (an engine takes the
+  // 8-bit images).
+  for (StoredKeyframe& kf : window_)
+    if (kf.rgb_float.data.empty()) kf.rgb_float = to_float_rgb(kf.rgb);
   std::vector<double> losses;
   losses.reserve(static_cast<size_t>(iterations));
   for (int it = 0; it < iterations; ++it) losses.push_back(iterate(pick_keyframe()));
@@ -384,7 +391,7 @@ void GaussianTrainer::add_gaussians(const StoredKeyframe& kf, const RenderOutput
           continue;
         }
         float dc = 0.f;
-        for (int c = 0; c < 3; ++c) dc += std::abs(out->rgb[3 * p + c] - kf.rgb.data[3 * p + c]);
+        for (int c = 0; c < 3; ++c) dc += std::abs(out->rgb[3 * p + c] - unit_colour(kf.rgb.data[3 * p + c]));
         if (dc / 3.f > params_.colour_error) error[p] = 2;
       }
     });
@@ -531,7 +538,8 @@ GaussianInit GaussianTrainer::gaussian_at(const StoredKeyframe& kf, int u, int v
                                 static_cast<float>(std::log(sigma * params_.flatness)));
   g.rotation = quaternion_of(R_w);
   const size_t p = static_cast<size_t>(v) * w + u;
-  g.colour = Eigen::Vector3f(kf.rgb.data[3 * p], kf.rgb.data[3 * p + 1], kf.rgb.data[3 * p + 2]);
+  g.colour = Eigen::Vector3f(unit_colour(kf.rgb.data[3 * p]), unit_colour(kf.rgb.data[3 * p + 1]),
+                             unit_colour(kf.rgb.data[3 * p + 2]));
   g.object_id = kf.labels.data[p];
   g.type = transparent ? GaussianType::kTransparent : GaussianType::kOpaque;
   g.birth_keyframe = static_cast<uint32_t>(keyframe_count_ - 1);
@@ -550,8 +558,8 @@ double GaussianTrainer::iterate(const StoredKeyframe& kf) {
   // The photometric and depth terms over the pixels of `weights`, into `og`.
   const double l_ssim = params_.lambda_ssim;
   auto image_terms = [&](const PixelWeights& weights, OutputGradients* og) {
-    double l = (1.0 - l_ssim) * l1_rgb_loss(out, kf.rgb, weights, 1.0 - l_ssim, og);
-    if (l_ssim > 0.0) l += l_ssim * ssim_loss(out, kf.rgb, weights, l_ssim, og);
+    double l = (1.0 - l_ssim) * l1_rgb_loss(out, kf.rgb_float, weights, 1.0 - l_ssim, og);
+    if (l_ssim > 0.0) l += l_ssim * ssim_loss(out, kf.rgb_float, weights, l_ssim, og);
     if (params_.lambda_depth > 0.f) {
       l += params_.lambda_depth * l1_depth_loss(out, kf.depth, weights, params_.lambda_depth, og);
     }

@@ -218,7 +218,8 @@ class GaussianTrainer {
     uint32_t id = 0;
     PinholeCamera camera;
     SE3 T_wc;
-    ImageF rgb;
+    ImageRgb8 rgb;     // as received: 2.4 MB at 1200×680, where floats are 9.8 (and 3 ms to make)
+    ImageF rgb_float;  // rgb / 255 (to_float_rgb), made for the host's own iterations only
     DepthImage depth;
     LabelImage labels;
     std::vector<uint32_t> objects;  // IDs with pixels in `labels`

@@ -28,7 +28,7 @@ struct TrainingView {
   uint64_t key = 0;
   const PinholeCamera* camera = nullptr;
   SE3 T_cw;                             // world to camera (the pose may change between batches)
-  const ImageF* rgb = nullptr;          // 3 channels in [0, 1]
+  const ImageRgb8* rgb = nullptr;       // 3 channels; the colour is value / 255 (to_float_rgb)
   const DepthImage* depth = nullptr;    // metres; 0 / NaN: no measurement
   const LabelImage* labels = nullptr;   // object ID per pixel
 };
