@@ -4,8 +4,12 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <cstddef>
+#include <cstdint>
+#include <mutex>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 namespace dqo::gs::detail {
@@ -16,17 +20,54 @@ inline int resolve_threads(int threads) {
   return hw ? static_cast<int>(hw) : 1;
 }
 
-// Runs fn(t) for t in [0, threads) on `threads` threads (the caller's among them) and joins.
+// Worker threads kept from call to call: starting and joining fifteen threads costs about as much
+// as some of the loops they run (a keyframe makes a dozen such calls). run() hands fn(t) for t in
+// [1, threads) to workers, runs fn(0) on the caller and waits. One caller at a time: it returns
+// false, having run nothing, when another caller holds the pool or the caller is one of its
+// workers (a nested call), and the caller then starts threads of its own.
+class WorkerPool {
+ public:
+  using Call = void (*)(void* fn, int t);
+  static WorkerPool& instance();
+  bool run(int threads, Call call, void* fn);
+  ~WorkerPool();
+
+ private:
+  WorkerPool() = default;
+  void work(int index, uint64_t seen);
+
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  std::vector<std::thread> workers_;  // worker k runs t = k + 1
+  std::atomic<bool> busy_{false};
+  uint64_t generation_ = 0;  // one per run()
+  int active_ = 0;           // threads of the current run (workers below active_ - 1 take part)
+  int remaining_ = 0;        // workers of the current run not finished yet
+  Call call_ = nullptr;
+  void* fn_ = nullptr;
+  bool stop_ = false;
+};
+
+// Runs fn(t) for t in [0, threads) on `threads` threads (the caller's among them) and joins: on
+// the worker pool where it is free, else on threads started for the call.
 template <typename F>
 void run_on_threads(int threads, F&& fn) {
   if (threads <= 1) {
     fn(0);
     return;
   }
+  using Fn = std::remove_reference_t<F>;
+  const WorkerPool::Call call = [](void* f, int t) { (*static_cast<Fn*>(f))(t); };
+  if (WorkerPool::instance().run(threads, call, const_cast<void*>(static_cast<const void*>(&fn)))) return;
   std::vector<std::thread> pool;
   pool.reserve(threads - 1);
   for (int t = 1; t < threads; ++t) pool.emplace_back([&fn, t] { fn(t); });
-  fn(0);
+  try {
+    fn(0);
+  } catch (...) {
+    for (std::thread& th : pool) th.join();
+    throw;
+  }
   for (std::thread& th : pool) th.join();
 }
 
