@@ -161,14 +161,15 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   }
   t = std::chrono::steady_clock::now();
 
-  // Stabilise.
+  // Stabilise (off by default: no pass over the map then).
   auto& stable = map_.stable();
-  const auto& confidence = map_.confidences();
-  for (size_t i = 0; i < map_.size(); ++i) {
-    if (params_.stable_confidence > 0.f && !stable[i] &&
-        confidence[i] >= params_.stable_confidence) {
-      stable[i] = 1;
-      ++report.became_stable;
+  if (params_.stable_confidence > 0.f) {
+    const auto& confidence = map_.confidences();
+    for (size_t i = 0; i < map_.size(); ++i) {
+      if (!stable[i] && confidence[i] >= params_.stable_confidence) {
+        stable[i] = 1;
+        ++report.became_stable;
+      }
     }
   }
 
@@ -294,11 +295,13 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   const size_t n_pixels = kf.labels.data.size();
   OutputGradients& probe = scratch_.probe;
   probe.rgb.resize(3 * n_pixels);
-  for (size_t p = 0; p < n_pixels; ++p) {
-    probe.rgb[3 * p] = 1.f;
-    probe.rgb[3 * p + 1] = kf.labels.data[p] == 0 ? 1.f : 0.f;
-    probe.rgb[3 * p + 2] = kf.labels.data[p] != 0 ? 1.f : 0.f;
-  }
+  detail::parallel_for_chunks(detail::resolve_threads(0), n_pixels, [&](size_t begin, size_t end) {
+    for (size_t p = begin; p < end; ++p) {
+      probe.rgb[3 * p] = 1.f;
+      probe.rgb[3 * p + 1] = kf.labels.data[p] == 0 ? 1.f : 0.f;
+      probe.rgb[3 * p + 2] = kf.labels.data[p] != 0 ? 1.f : 0.f;
+    }
+  });
   MapGradients& g = scratch_.review;
   g.colour_only = true;  // a GPU backend then brings back 3 of the 14 values per Gaussian
   g.colour.clear();  // backward() sizes it, zero-filled, and adds
