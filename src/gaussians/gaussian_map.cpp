@@ -4,6 +4,7 @@
 #include <atomic>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 
 #include "compaction.h"
 
@@ -109,10 +110,30 @@ std::vector<uint32_t> GaussianMap::indices_of(uint32_t object_id) const {
 }
 
 std::vector<uint32_t> GaussianMap::object_ids() const {
-  std::vector<uint32_t> ids = object_id_;
-  std::sort(ids.begin(), ids.end());
-  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  std::vector<uint32_t> ids;
+  for (const auto& [id, count] : counts_by_object()) ids.push_back(id);
   return ids;
+}
+
+std::map<uint32_t, size_t> GaussianMap::counts_by_object() const {
+  const size_t n = object_id_.size();
+  // Fixed chunks, each counted by runs into its own table, merged in order.
+  constexpr size_t kChunk = size_t{1} << 16;
+  const size_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<std::unordered_map<uint32_t, size_t>> partial(chunks);
+  detail::parallel_for_dynamic(chunks > 1 ? detail::resolve_threads(0) : 1, chunks, [&](size_t c) {
+    const size_t end = std::min(n, (c + 1) * kChunk);
+    for (size_t i = c * kChunk; i < end;) {
+      size_t j = i + 1;
+      while (j < end && object_id_[j] == object_id_[i]) ++j;
+      partial[c][object_id_[i]] += j - i;
+      i = j;
+    }
+  });
+  std::map<uint32_t, size_t> counts;
+  for (const auto& p : partial)
+    for (const auto& [id, count] : p) counts[id] += count;
+  return counts;
 }
 
 size_t GaussianMap::relabel(uint32_t from, uint32_t to) {

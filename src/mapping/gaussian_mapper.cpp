@@ -9,7 +9,6 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
-#include <unordered_map>
 #include <utility>
 
 #include "dqo_map/common/stopwatch.h"
@@ -347,18 +346,7 @@ std::optional<MappingReport> GaussianMapper::process_next() {
   const gs::GaussianMap& map = trainer_->map();
   report.num_gaussians = map.size();
   report.bytes = map.bytes_used();
-  // By runs of equal IDs (Gaussians are added a keyframe's object at a time): one count update per
-  // run instead of per Gaussian, which on a map of a million cost tens of milliseconds a keyframe.
-  // Relabelled Gaussians keep their place and split runs, so the runs grow with the relabellings:
-  // hashed counts, ordered once at the end.
-  const std::vector<uint32_t>& ids = map.object_ids_per_gaussian();
-  std::unordered_map<uint32_t, size_t> counts;
-  for (size_t i = 0; i < ids.size();) {
-    size_t j = i + 1;
-    while (j < ids.size() && ids[j] == ids[i]) ++j;
-    counts[ids[i]] += j - i;
-    i = j;
-  }
+  const std::map<uint32_t, size_t> counts = map.counts_by_object();
   report.gaussians_per_object.insert(counts.begin(), counts.end());
   report.queued = ready_.size() + waiting_.size();
   report.dropped_total = dropped_;
@@ -372,11 +360,11 @@ std::vector<ObjectSummary> GaussianMapper::list_objects() const {
     out[id].object = o;
     out[id].known = true;
   }
-  for (const uint32_t id : trainer_->map().object_ids_per_gaussian()) {
+  for (const auto& [id, count] : trainer_->map().counts_by_object()) {
     if (id == 0) continue;
     ObjectSummary& s = out[id];
     s.object.id = id;
-    ++s.num_gaussians;
+    s.num_gaussians = count;
   }
   std::vector<ObjectSummary> list;
   for (auto& [id, s] : out) list.push_back(std::move(s));

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <map>
+#include <random>
 #include <stdexcept>
 #include <vector>
 
@@ -129,6 +131,32 @@ TEST(GaussianMap, IdsSurviveAddPruneRelabelAndMerge) {
   expect_consistent(map);
   EXPECT_TRUE(map.indices_of(1).empty());
   EXPECT_EQ(map.indices_of(9).size(), 1u);
+}
+
+// The per-object counts (taken by runs over threads) against a plain count, on a map of runs that
+// relabelling in place has split, large enough for several chunks.
+TEST(GaussianMap, CountsByObjectMatchAPlainCount) {
+  std::mt19937 rng(8);
+  GaussianMap map;
+  while (map.size() < 300000) {
+    const uint32_t id = rng() % 7;
+    const size_t run = 1 + rng() % 5000;
+    for (size_t k = 0; k < run; ++k) map.add(with_id(id, 1.f));
+  }
+  std::vector<uint8_t> which(map.size(), 0);
+  std::vector<uint32_t> new_id(map.size(), 0);
+  for (size_t i = 0; i < map.size(); ++i) {
+    which[i] = rng() % 50 == 0;
+    new_id[i] = 10 + rng() % 3;
+  }
+  map.relabel_each(which, new_id);
+  std::map<uint32_t, size_t> expected;
+  for (uint32_t id : map.object_ids_per_gaussian()) ++expected[id];
+  EXPECT_EQ(map.counts_by_object(), expected);
+  std::vector<uint32_t> ids;
+  for (const auto& [id, count] : expected) ids.push_back(id);
+  EXPECT_EQ(map.object_ids(), ids);
+  EXPECT_TRUE(GaussianMap().counts_by_object().empty());
 }
 
 TEST(GaussianMap, BytesUsed) {
