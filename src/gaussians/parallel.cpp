@@ -25,9 +25,14 @@ bool WorkerPool::run(int threads, Call call, void* fn) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     // New workers start from the generation before this run's: they take part in it.
-    while (static_cast<int>(workers_.size()) < threads - 1) {
-      const int index = static_cast<int>(workers_.size());
-      workers_.emplace_back([this, index, seen = generation_] { work(index, seen); });
+    try {
+      while (static_cast<int>(workers_.size()) < threads - 1) {
+        const int index = static_cast<int>(workers_.size());
+        workers_.emplace_back([this, index, seen = generation_] { work(index, seen); });
+      }
+    } catch (...) {  // no more threads to be had: the caller's own way decides (every t must run)
+      busy_ = false;
+      return false;
     }
     call_ = call;
     fn_ = fn;
