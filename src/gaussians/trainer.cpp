@@ -713,7 +713,8 @@ size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
   if (remove.size() != map_.size())
     throw std::invalid_argument("GaussianTrainer::remove_if: mask has " + std::to_string(remove.size()) +
                                 " entries for " + std::to_string(map_.size()) + " Gaussians");
-  const size_t removed = static_cast<size_t>(std::count_if(remove.begin(), remove.end(), [](uint8_t r) { return r != 0; }));
+  const size_t removed =
+      static_cast<size_t>(std::count_if(remove.begin(), remove.end(), [](uint8_t r) { return r != 0; }));
   if (removed == 0) return 0;
   // The map's arrays, the optimiser's step counts, the trainer's own and the engine's copy at
   // once: each compaction runs its arrays on threads, but the largest array bounds it, so one

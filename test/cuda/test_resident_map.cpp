@@ -158,7 +158,8 @@ TEST(ResidentMap, KeepsTheMomentsTheHostLeavesToIt) {
     EXPECT_EQ(adam.state().steps.size(), map.size()) << where;
     EXPECT_TRUE(adam.state().position.m.empty()) << where;
     resident.sync_up(map, adam, stream);
-    for (gs::GaussianAdam::Moments* m : {&expected.position, &expected.log_scale, &expected.rotation, &expected.colour}) {
+    for (gs::GaussianAdam::Moments* m :
+         {&expected.position, &expected.log_scale, &expected.rotation, &expected.colour}) {
       const size_t width = m->m.size() / 3000;
       m->m.resize(map.size() * width, 0.f);
       m->v.resize(map.size() * width, 0.f);
