@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "compaction.h"
+#include "dqo_map/gaussians/math/review.h"
 #include "parallel.h"
 
 namespace dqo::gs {
@@ -308,50 +309,35 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   const SE3 T_cw = kf.T_wc.inverse();
   rasteriser_->backward(map_, kf.camera, T_cw, settings(0, false), state, probe, &g);
 
-  const Eigen::Matrix3f R = T_cw.rotation().cast<float>();
-  const Eigen::Vector3f t = T_cw.translation().cast<float>();
+  ReviewView view;
+  const Eigen::Matrix3d R = T_cw.rotation();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) view.R[r][c] = static_cast<float>(R(r, c));
+    view.t[r] = static_cast<float>(T_cw.translation()[r]);
+  }
+  view.fx = kf.camera.fx, view.fy = kf.camera.fy, view.cx = kf.camera.cx, view.cy = kf.camera.cy;
+  view.width = kf.camera.width, view.height = kf.camera.height;
+  view.depth = kf.depth.data.data();
+  view.labels = kf.labels.data.data();
+  ReviewSettings rs;
+  rs.min_depth = params_.min_depth;
+  rs.depth_error = params_.depth_error;
+  rs.min_contribution = params_.min_contribution;
+  rs.relabel_fraction = params_.relabel_fraction;
+  rs.budget_decay = params_.budget_decay;
+  rs.relabel_keyframes = params_.relabel_keyframes;
+  rs.check_visibility = check_visibility;
+  rs.check_labels = check_labels;
   const float* pos = map_.positions().data();
   const auto& ids = map_.object_ids_per_gaussian();
-  const int w = kf.camera.width, h = kf.camera.height;
   std::vector<uint8_t> relabel(map_.size(), 0);
   std::vector<uint32_t> new_id(map_.size(), 0);
   // Each Gaussian on its own (its entries of the per-Gaussian arrays only): over threads, with
   // the same result on any number of them; a million Gaussians took 100 ms on one core.
   detail::parallel_for_chunks(detail::resolve_threads(0), map_.size(), [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
-      const Eigen::Vector3f p_c = R * Eigen::Vector3f(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]) + t;
-      if (p_c.z() < params_.min_depth) continue;
-      const int u = static_cast<int>(std::lround(kf.camera.fx * p_c.x() / p_c.z() + kf.camera.cx));
-      const int v = static_cast<int>(std::lround(kf.camera.fy * p_c.y() / p_c.z() + kf.camera.cy));
-      if (u < 0 || v < 0 || u >= w || v >= h) continue;
-      const size_t p = static_cast<size_t>(v) * w + u;
-      const float d = kf.depth.data[p];
-      if (!valid_depth(d) || p_c.z() > d + params_.depth_error) continue;  // occluded or unknown
-      const float contribution = g.colour[3 * i];
-      usefulness_[i] = std::isinf(usefulness_[i])
-                           ? contribution
-                           : std::max(contribution, params_.budget_decay * usefulness_[i]);
-      if (check_visibility) {
-        if (contribution < params_.min_contribution) {
-          if (invisible_count_[i] < UINT16_MAX) ++invisible_count_[i];
-        } else {
-          invisible_count_[i] = 0;
-        }
-      }
-      if (!check_labels) continue;
-      // A Gaussian on the measured surface whose contribution lies mostly on pixels of another
-      // label than its own, with its centre on such a pixel, votes to take that label.
-      const uint32_t label = kf.labels.data[p];
-      const float on_label = label == 0 ? g.colour[3 * i + 1] : g.colour[3 * i + 2];
-      const bool disagrees = label != ids[i] && contribution >= params_.min_contribution &&
-                             on_label >= params_.relabel_fraction * contribution &&
-                             std::abs(p_c.z() - d) <= params_.depth_error;
-      if (!disagrees) {
-        relabel_votes_[i] = 0;
-      } else if (++relabel_votes_[i] >= params_.relabel_keyframes) {
-        relabel[i] = 1;
-        new_id[i] = label;
-      }
+      relabel[i] = review_gaussian(view, rs, pos + 3 * i, ids[i], g.colour.data() + 3 * i, &usefulness_[i],
+                                   &invisible_count_[i], &relabel_votes_[i], &new_id[i]);
     }
   });
   relabel_gaussians(relabel, new_id);
