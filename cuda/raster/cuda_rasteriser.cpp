@@ -68,9 +68,8 @@ class CudaRasteriser final : public gs::Rasteriser {
     out->width = camera.width;
     out->height = camera.height;
     // The images asked for come down; the others are left empty (RenderSettings::outputs).
-    const auto wanted = [&](gs::RenderImage bit) { return (settings.outputs & bit) != 0; };
     const auto bring = [&](auto* host, const auto* device, size_t count, gs::RenderImage bit) {
-      if (wanted(bit))
+      if (settings.outputs & bit)
         download(host, device, count, stream);
       else
         host->clear();

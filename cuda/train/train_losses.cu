@@ -64,7 +64,7 @@ __global__ void __launch_bounds__(kBlock)
 
 __global__ void unit_colours_kernel(size_t values, const uint8_t* in, float* out) {
   const size_t k = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (k < values) out[k] = in[k] * (1.f / 255.f);  // an exact product's rounding: the host's float
+  if (k < values) out[k] = in[k] * (1.f / 255.f);  // gs::unit_colour()'s float (losses.h brings Eigen)
 }
 
 }  // namespace

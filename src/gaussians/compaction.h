@@ -33,7 +33,7 @@ class Compaction {
     jobs_.push_back([values, width, this] { compact(values, width, remove_); });
   }
   void run() {
-    // Small maps on the calling thread: starting threads would cost more than the copies.
+    // Small maps on the calling thread: handing the copies to threads would cost more than them.
     const int threads = remove_.size() < kThreadedFrom ? 1 : resolve_threads(0);
     parallel_for_dynamic(threads, jobs_.size(), [this](size_t k) { jobs_[k](); });
     jobs_.clear();

@@ -63,7 +63,7 @@ void blur(const std::vector<double>& in, int w, int h, std::vector<double>* out)
 
 ImageF to_float_rgb(const ImageRgb8& rgb) {
   ImageF out(rgb.width, rgb.height, rgb.channels);
-  for (size_t i = 0; i < rgb.data.size(); ++i) out.data[i] = rgb.data[i] * (1.f / 255.f);
+  for (size_t i = 0; i < rgb.data.size(); ++i) out.data[i] = unit_colour(rgb.data[i]);
   return out;
 }
 

@@ -18,9 +18,6 @@ namespace {
 
 bool valid_depth(float d) { return std::isfinite(d) && d > 0.f; }
 
-// A colour channel in [0, 1], as to_float_rgb() makes it (the same float, bit for bit).
-float unit_colour(uint8_t v) { return v * (1.f / 255.f); }
-
 // Rotation (w, x, y, z) whose columns are the given orthonormal, right-handed axes.
 Eigen::Vector4f quaternion_of(const Eigen::Matrix3d& R) {
   const Eigen::Quaterniond q(R);
@@ -319,7 +316,7 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   view.width = kf.camera.width, view.height = kf.camera.height;
   view.depth = kf.depth.data.data();
   view.labels = kf.labels.data.data();
-  ReviewSettings rs;
+  ReviewSettings rs{};
   rs.min_depth = params_.min_depth;
   rs.depth_error = params_.depth_error;
   rs.min_contribution = params_.min_contribution;

@@ -21,8 +21,17 @@ struct Fixture {
   std::vector<float> depth = std::vector<float>(12, 2.f);
   std::vector<uint32_t> labels = std::vector<uint32_t>(12, 0u);
   ReviewView view{};
-  ReviewSettings settings;
+  ReviewSettings settings{};
   Fixture() {
+    // The trainer's defaults (trainer.h).
+    settings.min_depth = 0.3f;
+    settings.depth_error = 0.1f;
+    settings.min_contribution = 0.05f;
+    settings.relabel_fraction = 0.8f;
+    settings.budget_decay = 0.9f;
+    settings.relabel_keyframes = 2;
+    settings.check_visibility = true;
+    settings.check_labels = true;
     for (int i = 0; i < 3; ++i) view.R[i][i] = 1.f;
     view.fx = view.fy = 2.0;
     view.cx = 1.5, view.cy = 1.0;

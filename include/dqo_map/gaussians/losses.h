@@ -21,7 +21,9 @@ namespace dqo::gs {
 using ImageF = Image<float>;
 using PixelWeights = std::vector<float>;
 
-// RGB8 to float RGB in [0, 1], same layout.
+// One 8-bit channel in [0, 1]: the float every colour of the map and the losses starts from.
+inline float unit_colour(uint8_t v) { return v * (1.f / 255.f); }
+// RGB8 to float RGB in [0, 1] (unit_colour), same layout.
 ImageF to_float_rgb(const ImageRgb8& rgb);
 
 // L1 over the colour channels: Σ_p w_p Σ_c |r̂_pc − r_pc| / (3 Σ_p w_p). `target` has 3 channels.

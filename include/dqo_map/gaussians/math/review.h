@@ -18,15 +18,16 @@
 
 namespace dqo::gs {
 
+// GaussianTrainer::Params' values of the same names (trainer.h explains and sets them).
 struct ReviewSettings {
-  float min_depth = 0.3f;          // metres: nearer centres are not reviewed
-  float depth_error = 0.1f;        // metres: a centre this far behind the measured depth is hidden
-  float min_contribution = 0.05f;  // Σ T α below this: the Gaussian gave (almost) nothing
-  float relabel_fraction = 0.8f;   // share of the contribution on pixels of another label
-  float budget_decay = 0.9f;       // older views' weight in the usefulness
-  int relabel_keyframes = 2;       // keyframes in a row that must vote for a new label
-  bool check_visibility = true;    // count the keyframes of (almost) no contribution
-  bool check_labels = true;        // let labels follow the observations
+  float min_depth;         // metres: nearer centres are not reviewed
+  float depth_error;       // metres: a centre this far behind the measured depth is hidden
+  float min_contribution;  // Σ T α below this: the Gaussian gave (almost) nothing
+  float relabel_fraction;  // share of the contribution on pixels of another label
+  float budget_decay;      // older views' weight in the usefulness
+  int relabel_keyframes;   // keyframes in a row that must vote for a new label
+  bool check_visibility;   // count the keyframes of (almost) no contribution
+  bool check_labels;       // let labels follow the observations
 };
 
 // The keyframe as the review sees it: world to camera (row-major rotation, translation), the
