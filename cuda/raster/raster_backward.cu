@@ -3,7 +3,8 @@
 // tile, one thread per pixel: the tile's list is walked back to front from the last contributor of
 // any of its pixels, in shared-memory batches; a pixel takes part from its own last contributor on,
 // reconstructs the transmittance in front of each Gaussian from its final one and adds that
-// Gaussian's share of the 2D gradients. A warp sums its pixels' shares (a reduce-scatter) before
+// Gaussian's share of the 2D gradients. As in the forward pass, a warp (an 8×4 block) visits only
+// the splats whose α box meets its block, found 32 at a time by one ballot. A warp sums its pixels' shares (a reduce-scatter) before
 // ten of its lanes add them to the Gaussian's total (float atomics: the sum's order, and so its
 // last bits, vary from run to run). Then every visible Gaussian's 2D gradients go through
 // project_gaussian_vjp().
@@ -58,9 +59,9 @@ __global__ void __launch_bounds__(kThreads)
                     const DeviceSplat* splats, ForwardSettings settings, ForwardState state,
                     ImageGradientsDevice grad_out, Grad2D* grad2d) {
   const int tile = blockIdx.x;
-  const int tx0 = (tile % tiles_x) * kTileSize, ty0 = (tile / tiles_x) * kTileSize;
-  const int x = tx0 + static_cast<int>(threadIdx.x % kTileSize);
-  const int y = ty0 + static_cast<int>(threadIdx.x / kTileSize);
+  const TileThread th = tile_thread(tile, tiles_x, width, height);
+  const int x = th.x, y = th.y;
+  const int lane = static_cast<int>(threadIdx.x % 32);
   const bool inside = x < width && y < height;
   const size_t pix = inside ? static_cast<size_t>(y) * width + x : 0;
 
@@ -118,37 +119,47 @@ __global__ void __launch_bounds__(kThreads)
       batch[threadIdx.x] = splats[batch_id[threadIdx.x]];
     }
     __syncthreads();
-    for (int pos = end - 1; pos >= begin; --pos) {
-      const DeviceSplat& s = batch[pos - begin];
-      Grad2D g{};
-      bool contributes = false;
-      if (static_cast<uint32_t>(pos) < n_contrib) {
-        float alpha, vis;
-        if (gs::evaluate_alpha(s.conic, s.mean2d, s.opacity, float(x), float(y), &alpha, &vis)) {
-          gs::Vec3<float> v_colour{0.f, 0.f, 0.f};
-          float v_z = 0.f;
-          float v_alpha = gs::composite_step_vjp(alpha, s.colour, s.depth, t_final, bg, v_rgb, v_depth, v_alpha_px,
-                                                 &back, &v_colour, &v_z);
-          if (s.counts_for_ins) v_alpha += v_ins;
-          if (v_surface != 0.f) {
-            const uint32_t position = static_cast<uint32_t>(pos) + 1;
-            if (position >= sa.first && position <= sa.last)
-              v_alpha += gs::surface_step_vjp(alpha, s.depth, gs::surface_depth(sa), sa.weight, v_surface,
-                                              &surface_back, &v_z);
+    // 32 splats at a time, back to front, those before the warp's last contributor whose box
+    // meets its block.
+    for (int r = ((end - begin - 1) / 32) * 32; r >= 0; r -= 32) {
+      const int j = r + lane;
+      const int warp_end = min(end, static_cast<int>(max_contrib));
+      uint32_t hits = __ballot_sync(kFull, begin + j < warp_end && box_meets_block(batch[j], th));
+      while (hits != 0) {
+        const int b = 31 - __clz(hits);
+        hits &= ~(1u << b);
+        const int pos = begin + r + b;
+        const DeviceSplat& s = batch[pos - begin];
+        Grad2D g{};
+        bool contributes = false;
+        if (static_cast<uint32_t>(pos) < n_contrib) {
+          float alpha, vis;
+          if (gs::evaluate_alpha(s.conic, s.mean2d, s.opacity, float(x), float(y), &alpha, &vis)) {
+            gs::Vec3<float> v_colour{0.f, 0.f, 0.f};
+            float v_z = 0.f;
+            float v_alpha = gs::composite_step_vjp(alpha, s.colour, s.depth, t_final, bg, v_rgb, v_depth, v_alpha_px,
+                                                   &back, &v_colour, &v_z);
+            if (s.counts_for_ins) v_alpha += v_ins;
+            if (v_surface != 0.f) {
+              const uint32_t position = static_cast<uint32_t>(pos) + 1;
+              if (position >= sa.first && position <= sa.last)
+                v_alpha += gs::surface_step_vjp(alpha, s.depth, gs::surface_depth(sa), sa.weight, v_surface,
+                                                &surface_back, &v_z);
+            }
+            gs::Sym2<float> v_conic{0.f, 0.f, 0.f};
+            gs::Vec2<float> v_mean{0.f, 0.f};
+            float v_opacity = 0.f;
+            gs::evaluate_alpha_vjp(s.conic, s.mean2d, s.opacity, float(x), float(y), vis, v_alpha, &v_conic, &v_mean,
+                                   &v_opacity);
+            g = Grad2D{{v_mean.x, v_mean.y}, {v_conic.xx, v_conic.xy, v_conic.yy}, v_opacity,
+                       {v_colour.x, v_colour.y, v_colour.z}, v_z};
+            contributes = true;
           }
-          gs::Sym2<float> v_conic{0.f, 0.f, 0.f};
-          gs::Vec2<float> v_mean{0.f, 0.f};
-          float v_opacity = 0.f;
-          gs::evaluate_alpha_vjp(s.conic, s.mean2d, s.opacity, float(x), float(y), vis, v_alpha, &v_conic, &v_mean,
-                                 &v_opacity);
-          g = Grad2D{{v_mean.x, v_mean.y}, {v_conic.xx, v_conic.xy, v_conic.yy}, v_opacity,
-                     {v_colour.x, v_colour.y, v_colour.z}, v_z};
-          contributes = true;
         }
+        // Warps where no pixel took part skip the sums (most, for small Gaussians).
+        if (__any_sync(kFull, contributes))
+          warp_add_grad2d(g, reinterpret_cast<float*>(&grad2d[batch_id[pos - begin]]));
       }
-      // Warps where no pixel took part skip the sums (most, for small Gaussians).
-      if (__any_sync(kFull, contributes))
-        warp_add_grad2d(g, reinterpret_cast<float*>(&grad2d[batch_id[pos - begin]]));
     }
   }
 }

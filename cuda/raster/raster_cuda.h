@@ -16,6 +16,7 @@
 namespace dqo::cuda::detail {
 
 constexpr int kTileSize = 16;  // as the CPU rasteriser's tiles: same bins, same per-tile order
+constexpr int kMaxImageSide = 32767;  // as the CPU rasteriser's (src/gaussians/raster_internal.h)
 // GaussianType::kOpaque (gaussians/gaussian_map.h, which brings Eigen: kept out of device code;
 // cuda_rasteriser.cpp asserts the value).
 constexpr uint8_t kOpaqueType = 0;
@@ -41,6 +42,10 @@ struct DeviceSplat {
   float depth;
   uint32_t object_id;
   uint32_t counts_for_ins;  // an opaque Gaussian of settings.ins_object
+  // Pixel centres outside [box[0], box[2]] × [box[1], box[3]] (inclusive, clipped to the image)
+  // have α < 1/255 for sure (math/alpha.h's alpha_extent): a warp whose pixels all lie outside
+  // skips the splat without evaluating it.
+  uint16_t box[4];
 };
 
 struct TileRect {
@@ -55,6 +60,39 @@ __device__ __forceinline__ bool tile_reached(const DeviceSplat& s, int tx, int t
   return gs::ellipse_reaches_rect(s.conic, s.mean2d, s.opacity, float(tx * kTileSize), float(ty * kTileSize),
                                   float(min(tx * kTileSize + kTileSize - 1, width - 1)),
                                   float(min(ty * kTileSize + kTileSize - 1, height - 1)));
+}
+#endif
+
+// A tile's kTileSize² threads as eight warps of 8×4 pixels: warp w takes block (w % 2, w / 2) of
+// the tile, lane l pixel (l % 8, l / 8) of it. A compact block meets fewer splat boxes than a
+// 16×2 strip, and a warp skips, as one, every splat whose box misses its block (the per-pixel
+// results are those of evaluating it: α < 1/255 there).
+constexpr int kWarpBlockW = 8, kWarpBlockH = 4;
+static_assert(kTileSize * kTileSize == 8 * 32 && kTileSize == 2 * kWarpBlockW && kTileSize == 4 * kWarpBlockH,
+              "the thread layout below assumes 16×16 tiles of eight 8×4 warps");
+
+struct TileThread {
+  int x, y;               // the thread's pixel (may lie outside the image)
+  int bx0, by0, bx1, by1;  // its warp's block, clipped to the image (bx0 > bx1 or by0 > by1: empty)
+};
+
+#ifdef __CUDACC__
+__device__ __forceinline__ TileThread tile_thread(int tile, int tiles_x, int width, int height) {
+  const int warp = static_cast<int>(threadIdx.x) / 32, lane = static_cast<int>(threadIdx.x) % 32;
+  TileThread t;
+  t.bx0 = (tile % tiles_x) * kTileSize + (warp % 2) * kWarpBlockW;
+  t.by0 = (tile / tiles_x) * kTileSize + (warp / 2) * kWarpBlockH;
+  t.x = t.bx0 + lane % kWarpBlockW;
+  t.y = t.by0 + lane / kWarpBlockW;
+  t.bx1 = min(t.bx0 + kWarpBlockW - 1, width - 1);
+  t.by1 = min(t.by0 + kWarpBlockH - 1, height - 1);
+  return t;
+}
+
+// Whether the splat's α box meets the warp's block (false for an empty block).
+__device__ __forceinline__ bool box_meets_block(const DeviceSplat& s, const TileThread& t) {
+  return t.bx0 <= t.bx1 && t.by0 <= t.by1 && int(s.box[0]) <= t.bx1 && int(s.box[2]) >= t.bx0 &&
+         int(s.box[1]) <= t.by1 && int(s.box[3]) >= t.by0;
 }
 #endif
 

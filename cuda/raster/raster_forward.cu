@@ -2,6 +2,9 @@
 // Gaussians, in depth order, are staged through shared memory in batches and composited front to
 // back with early stop, by the same per-pixel steps as the CPU reference (math/alpha.h,
 // math/composite.h): alpha, colour and depth, surface depth, instance opacity, dominant ID.
+// Each warp (an 8×4 block of the tile, raster_cuda.h's tile_thread()) first asks which 32 of the
+// batch's splats reach its block (one ballot over their α boxes) and visits only those, in order:
+// most of a tile's splats are small and miss most of its blocks.
 
 #include "raster_cuda.h"
 
@@ -13,16 +16,16 @@ namespace {
 
 constexpr int kThreads = kTileSize * kTileSize;
 constexpr float kNormaliseMinAlpha = 1e-6f;  // as the CPU's: below it the normalised depth is 0
+constexpr unsigned kFull = 0xffffffffu;
 
 __global__ void __launch_bounds__(kThreads)
     forward_kernel(int width, int height, int tiles_x, const uint2* ranges, const uint32_t* sorted_ids,
                    const DeviceSplat* splats, ForwardSettings settings, ForwardImages out,
                    ForwardState state) {
-  const int tile = blockIdx.x;
-  const int tx0 = (tile % tiles_x) * kTileSize, ty0 = (tile / tiles_x) * kTileSize;
-  const int x = tx0 + static_cast<int>(threadIdx.x % kTileSize);
-  const int y = ty0 + static_cast<int>(threadIdx.x / kTileSize);
+  const TileThread th = tile_thread(static_cast<int>(blockIdx.x), tiles_x, width, height);
+  const int x = th.x, y = th.y;
   const bool inside = x < width && y < height;
+  const int lane = static_cast<int>(threadIdx.x % 32);
 
   __shared__ DeviceSplat batch[kThreads];
   gs::PixelAccum<float> acc = gs::pixel_accum_start<float>();
@@ -33,7 +36,7 @@ __global__ void __launch_bounds__(kThreads)
   bool done = !inside;
   uint32_t n_contrib = 0;
 
-  const uint2 range = ranges[tile];
+  const uint2 range = ranges[blockIdx.x];
   const int count = static_cast<int>(range.y - range.x);
   for (int start = 0; start < count; start += kThreads) {
     // Everyone in the tile finished: the rest of the list cannot change a pixel.
@@ -42,24 +45,31 @@ __global__ void __launch_bounds__(kThreads)
     if (k < count) batch[threadIdx.x] = splats[sorted_ids[range.x + k]];
     __syncthreads();
     const int n = min(kThreads, count - start);
-    for (int j = 0; j < n && !done; ++j) {
-      const DeviceSplat& s = batch[j];
-      float alpha, vis;
-      if (!gs::evaluate_alpha(s.conic, s.mean2d, s.opacity, float(x), float(y), &alpha, &vis)) continue;
-      const float weight = acc.transmittance * alpha;
-      if (!gs::composite_step(alpha, s.colour, s.depth, &acc)) {
-        done = true;
-        break;
+    // 32 splats at a time, front to back: the warp's lanes test one each against the block.
+    for (int r = 0; r < n; r += 32) {
+      if (__all_sync(kFull, done)) break;
+      uint32_t hits = __ballot_sync(kFull, r + lane < n && box_meets_block(batch[r + lane], th));
+      for (; hits != 0; hits &= hits - 1) {
+        const int j = r + __ffs(hits) - 1;
+        if (done) continue;
+        const DeviceSplat& s = batch[j];
+        float alpha, vis;
+        if (!gs::evaluate_alpha(s.conic, s.mean2d, s.opacity, float(x), float(y), &alpha, &vis)) continue;
+        const float weight = acc.transmittance * alpha;
+        if (!gs::composite_step(alpha, s.colour, s.depth, &acc)) {
+          done = true;
+          continue;
+        }
+        const uint32_t position = static_cast<uint32_t>(start + j + 1);
+        if (settings.surface_depth)
+          gs::surface_step(alpha, s.depth, acc.transmittance, settings.gap_abs, settings.gap_rel, position, &surface);
+        if (s.counts_for_ins && (!settings.ins_labels || s.object_id == ins_label)) ins += alpha;
+        if (weight > best_weight) {
+          best_weight = weight;
+          best_id = s.object_id;
+        }
+        n_contrib = position;
       }
-      const uint32_t position = static_cast<uint32_t>(start + j + 1);
-      if (settings.surface_depth)
-        gs::surface_step(alpha, s.depth, acc.transmittance, settings.gap_abs, settings.gap_rel, position, &surface);
-      if (s.counts_for_ins && (!settings.ins_labels || s.object_id == ins_label)) ins += alpha;
-      if (weight > best_weight) {
-        best_weight = weight;
-        best_id = s.object_id;
-      }
-      n_contrib = position;
     }
   }
   if (!inside) return;

@@ -4,6 +4,8 @@
 #include "raster_pipeline.h"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace dqo::cuda::detail {
@@ -40,6 +42,10 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
                              const gs::RenderSettings& settings, bool keep_state) {
   const size_t n = g.count;
   const int width = cam.K.width, height = cam.K.height;
+  // The splats' α boxes hold pixel coordinates in 16 bits (DeviceSplat::box).
+  if (width > kMaxImageSide || height > kMaxImageSide)
+    throw std::invalid_argument("CUDA rasteriser: images of at most " + std::to_string(kMaxImageSide) +
+                                " pixels on a side");
   const size_t pixels = static_cast<size_t>(width) * height;
   n_ = n;
   width_ = width;

@@ -46,6 +46,8 @@ __global__ void project_kernel(DeviceGaussians g, gs::CameraView<float> cam, uin
   // Per-label instance opacity: every object's OG counts, on the pixels of its label.
   s.counts_for_ins = g.type[i] == kOpaqueType &&
                      (ins_per_label ? g.object_id[i] != 0 : ins_object != 0 && g.object_id[i] == ins_object);
+  s.box[0] = static_cast<uint16_t>(bx0), s.box[1] = static_cast<uint16_t>(by0);
+  s.box[2] = static_cast<uint16_t>(bx1), s.box[3] = static_cast<uint16_t>(by1);
   splats[i] = s;
   rects[i] = t;
   // Only the tiles its α ≥ 1/255 ellipse reaches (as the CPU binning: math/alpha.h).

@@ -149,7 +149,12 @@ TEST(CudaTrainingEngine, WholeMappingRunsReachTheHostsQuality) {
   if (!gpu_available()) GTEST_SKIP() << "no GPU";
   // Past the first keyframe the two runs draw differently (how many error pixels each samples
   // depends on its own render): compared as a whole, by the renders' error over every view.
-  for (uint64_t seed : {7u, 8u}) {
+  // The GPU's run also differs from one run to the next (float atomics sum in any order, and six
+  // keyframes of adding and pruning carry that on): over twelve runs on an H100 (2026-11-27) its
+  // error was 0.95-1.02 of the host's for seed 7 and 0.97-1.05 for seed 8. So the seeds' errors
+  // are compared summed (within 3 %), and each seed's within 10 % (a failure of one scene shows).
+  double total_h = 0, total_g = 0;
+  for (uint64_t seed : {7u, 8u, 9u, 10u}) {
     const gs::GaussianMap truth = truth_map(seed);
     Pair t(params(seed, 30));
     for (int k = 0; k < 6; ++k) {
@@ -170,10 +175,13 @@ TEST(CudaTrainingEngine, WholeMappingRunsReachTheHostsQuality) {
       }
     }
     const double values = 6.0 * 3 * kWidth * kHeight;
-    std::printf("seed %llu: mean colour error host %.5f, gpu %.5f\n", static_cast<unsigned long long>(seed),
-                eh / values, eg / values);
-    EXPECT_LE(eg, 1.03 * eh) << "seed " << seed;
+    std::printf("seed %llu: mean colour error host %.5f, gpu %.5f (%.3f)\n", static_cast<unsigned long long>(seed),
+                eh / values, eg / values, eg / eh);
+    EXPECT_LE(eg, 1.10 * eh) << "seed " << seed;
+    total_h += eh, total_g += eg;
   }
+  std::printf("all seeds: gpu / host %.3f\n", total_g / total_h);
+  EXPECT_LE(total_g, 1.03 * total_h);
 }
 
 TEST(CudaTrainingEngine, SettingsItDoesNotCoverStayOnTheHost) {
