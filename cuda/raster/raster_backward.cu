@@ -55,10 +55,10 @@ __device__ __forceinline__ void warp_add_grad2d(const Grad2D& g, float* dst) {
 }
 
 __global__ void __launch_bounds__(kThreads)
-    backward_kernel(int width, int height, int tiles_x, const uint2* ranges, const uint32_t* sorted_ids,
-                    const DeviceSplat* splats, ForwardSettings settings, ForwardState state,
-                    ImageGradientsDevice grad_out, Grad2D* grad2d) {
-  const int tile = blockIdx.x;
+    backward_kernel(int width, int height, int tiles_x, const uint32_t* tile_order, const uint2* ranges,
+                    const uint32_t* sorted_ids, const DeviceSplat* splats, ForwardSettings settings,
+                    ForwardState state, ImageGradientsDevice grad_out, Grad2D* grad2d) {
+  const int tile = static_cast<int>(tile_order[blockIdx.x]);
   const TileThread th = tile_thread(tile, tiles_x, width, height);
   const int x = th.x, y = th.y;
   const int lane = static_cast<int>(threadIdx.x % 32);
@@ -195,13 +195,14 @@ __global__ void project_vjp_kernel(DeviceGaussians g, gs::CameraView<float> cam,
 
 }  // namespace
 
-void launch_backward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
-                     const DeviceSplat* splats, const ForwardSettings& settings, const ForwardState& state,
-                     const ImageGradientsDevice& grad_out, Grad2D* grad2d, cudaStream_t stream) {
+void launch_backward(int width, int height, const uint32_t* tile_order, const uint2* ranges,
+                     const uint32_t* sorted_ids, const DeviceSplat* splats, const ForwardSettings& settings,
+                     const ForwardState& state, const ImageGradientsDevice& grad_out, Grad2D* grad2d,
+                     cudaStream_t stream) {
   const int tiles_x = (width + kTileSize - 1) / kTileSize, tiles_y = (height + kTileSize - 1) / kTileSize;
   if (tiles_x * tiles_y == 0) return;
-  backward_kernel<<<tiles_x * tiles_y, kThreads, 0, stream>>>(width, height, tiles_x, ranges, sorted_ids, splats,
-                                                               settings, state, grad_out, grad2d);
+  backward_kernel<<<tiles_x * tiles_y, kThreads, 0, stream>>>(width, height, tiles_x, tile_order, ranges, sorted_ids,
+                                                               splats, settings, state, grad_out, grad2d);
 }
 
 void launch_project_vjp(const DeviceGaussians& g, const gs::CameraView<float>& cam, const uint32_t* tile_count,

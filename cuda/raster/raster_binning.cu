@@ -43,6 +43,13 @@ __global__ void tile_ranges_kernel(size_t pairs, const uint64_t* keys, uint2* ra
   if (k + 1 == pairs || static_cast<uint32_t>(keys[k + 1] >> 32) != tile) ranges[tile].y = static_cast<uint32_t>(k + 1);
 }
 
+__global__ void tile_work_kernel(size_t tiles, const uint2* ranges, uint32_t* keys, uint32_t* ids) {
+  const size_t t = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (t >= tiles) return;
+  keys[t] = ranges[t].y - ranges[t].x;
+  ids[t] = static_cast<uint32_t>(t);
+}
+
 // Grows *temp to `bytes` (device memory kept between calls: no allocation per frame once warm).
 // A failed allocation is returned: CUB handed a null buffer would only report its size and sort
 // nothing.
@@ -90,6 +97,22 @@ cudaError_t sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uin
   if (err != cudaSuccess) return err;
   return cub::DeviceRadixSort::SortPairs(*temp, bytes, keys_in, keys_out, values_in, values_out,
                                          static_cast<int>(pairs), 0, end_bit, stream);
+}
+
+cudaError_t order_tiles(size_t tiles, const uint2* ranges, uint32_t* keys, uint32_t* ids, uint32_t* keys_out,
+                        uint32_t* tile_order, void** temp, size_t* temp_bytes, cudaStream_t stream) {
+  if (tiles == 0) return cudaSuccess;
+  constexpr int kBlock = 256;
+  tile_work_kernel<<<static_cast<unsigned>((tiles + kBlock - 1) / kBlock), kBlock, 0, stream>>>(tiles, ranges, keys,
+                                                                                                ids);
+  size_t bytes = 0;
+  const int items = static_cast<int>(tiles);
+  cudaError_t err = cub::DeviceRadixSort::SortPairsDescending(nullptr, bytes, keys, keys_out, ids, tile_order, items,
+                                                              0, 32, stream);
+  if (err == cudaSuccess) err = ensure(temp, temp_bytes, bytes);
+  if (err != cudaSuccess) return err;
+  return cub::DeviceRadixSort::SortPairsDescending(*temp, bytes, keys, keys_out, ids, tile_order, items, 0, 32,
+                                                   stream);
 }
 
 void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, uint2* ranges, cudaStream_t stream) {

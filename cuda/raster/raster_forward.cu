@@ -19,10 +19,11 @@ constexpr float kNormaliseMinAlpha = 1e-6f;  // as the CPU's: below it the norma
 constexpr unsigned kFull = 0xffffffffu;
 
 __global__ void __launch_bounds__(kThreads)
-    forward_kernel(int width, int height, int tiles_x, const uint2* ranges, const uint32_t* sorted_ids,
-                   const DeviceSplat* splats, ForwardSettings settings, ForwardImages out,
+    forward_kernel(int width, int height, int tiles_x, const uint32_t* tile_order, const uint2* ranges,
+                   const uint32_t* sorted_ids, const DeviceSplat* splats, ForwardSettings settings, ForwardImages out,
                    ForwardState state) {
-  const TileThread th = tile_thread(static_cast<int>(blockIdx.x), tiles_x, width, height);
+  const int tile = static_cast<int>(tile_order[blockIdx.x]);
+  const TileThread th = tile_thread(tile, tiles_x, width, height);
   const int x = th.x, y = th.y;
   const bool inside = x < width && y < height;
   const int lane = static_cast<int>(threadIdx.x % 32);
@@ -36,7 +37,7 @@ __global__ void __launch_bounds__(kThreads)
   bool done = !inside;
   uint32_t n_contrib = 0;
 
-  const uint2 range = ranges[blockIdx.x];
+  const uint2 range = ranges[tile];
   const int count = static_cast<int>(range.y - range.x);
   for (int start = 0; start < count; start += kThreads) {
     // Everyone in the tile finished: the rest of the list cannot change a pixel.
@@ -98,13 +99,13 @@ __global__ void __launch_bounds__(kThreads)
 
 }  // namespace
 
-void launch_forward(int width, int height, const uint2* ranges, const uint32_t* sorted_ids,
-                    const DeviceSplat* splats, const ForwardSettings& settings, const ForwardImages& out,
-                    const ForwardState& state, cudaStream_t stream) {
+void launch_forward(int width, int height, const uint32_t* tile_order, const uint2* ranges,
+                    const uint32_t* sorted_ids, const DeviceSplat* splats, const ForwardSettings& settings,
+                    const ForwardImages& out, const ForwardState& state, cudaStream_t stream) {
   const int tiles_x = (width + kTileSize - 1) / kTileSize, tiles_y = (height + kTileSize - 1) / kTileSize;
   if (tiles_x * tiles_y == 0) return;
-  forward_kernel<<<tiles_x * tiles_y, kThreads, 0, stream>>>(width, height, tiles_x, ranges, sorted_ids, splats,
-                                                              settings, out, state);
+  forward_kernel<<<tiles_x * tiles_y, kThreads, 0, stream>>>(width, height, tiles_x, tile_order, ranges, sorted_ids,
+                                                              splats, settings, out, state);
 }
 
 }  // namespace dqo::cuda::detail

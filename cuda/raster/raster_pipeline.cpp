@@ -33,7 +33,8 @@ float RasterPipeline::ms_between(int a, int b) const {
 
 size_t RasterPipeline::bytes() const {
   return splats_.bytes() + rects_.bytes() + tile_count_.bytes() + offsets_.bytes() + values_.bytes() +
-         sorted_ids_.bytes() + keys_.bytes() + sorted_keys_.bytes() + ranges_.bytes() + rgb_.bytes() + depth_.bytes() +
+         sorted_ids_.bytes() + keys_.bytes() + sorted_keys_.bytes() + ranges_.bytes() + tile_order_.bytes() +
+         tile_work_.bytes() + tile_ids_.bytes() + sorted_tile_work_.bytes() + rgb_.bytes() + depth_.bytes() +
          alpha_.bytes() + ins_.bytes() + dominant_.bytes() + labels_.bytes() + t_final_.bytes() + depth_raw_.bytes() +
          n_contrib_.bytes() + surface_.bytes() + grad2d_.bytes() + scan_temp_bytes_ + sort_temp_bytes_;
 }
@@ -88,6 +89,11 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   uint2* ranges = ranges_.ensure(tiles, "tile ranges");
   check(cudaMemsetAsync(ranges, 0, tiles * sizeof(uint2), stream_), "tile ranges");
   launch_tile_ranges(pairs, sorted_keys, ranges, stream_);
+  uint32_t* tile_order = tile_order_.ensure(tiles, "tile order");
+  check(order_tiles(tiles, ranges, tile_work_.ensure(tiles, "tile work"), tile_ids_.ensure(tiles, "tile work"),
+                    sorted_tile_work_.ensure(tiles, "tile work"), tile_order, &sort_temp_, &sort_temp_bytes_,
+                    stream_),
+        "tile order");
   check(cudaGetLastError(), "binning");
   mark(3);
   if (clock_) clock_->end(Stage::kBin, stream_);
@@ -117,7 +123,7 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
     kept.depth_raw = depth_raw_.ensure(pixels, "raw depth");
     if (settings.surface_depth) kept.surface = surface_.ensure(pixels, "surface");
   }
-  launch_forward(width, height, ranges, sorted_ids, splats, fs, images_, kept, stream_);
+  launch_forward(width, height, tile_order, ranges, sorted_ids, splats, fs, images_, kept, stream_);
   settings_ = fs;
   state_ = kept;
   check(cudaGetLastError(), "compositing");
@@ -138,8 +144,8 @@ void RasterPipeline::backward(const DeviceGaussians& g, const gs::CameraView<flo
     check(cudaMemsetAsync(grad2d, 0, n * sizeof(Grad2D), stream_), "2D gradients");
   grad2d_zeroed_ = false;
   mark(6);
-  launch_backward(width_, height_, ranges_.get(), sorted_ids_.get(), splats_.get(), settings_, state_, grad_out,
-                  grad2d, stream_);
+  launch_backward(width_, height_, tile_order_.get(), ranges_.get(), sorted_ids_.get(), splats_.get(), settings_,
+                  state_, grad_out, grad2d, stream_);
   check(cudaGetLastError(), "backward");
   launch_project_vjp(g, cam, tile_count_.get(), grad2d, out.position, out.log_scale, out.rotation, out.opacity,
                      out.colour, zero_culled, stream_);

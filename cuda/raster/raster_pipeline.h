@@ -92,6 +92,7 @@ class RasterPipeline {
   DeviceBuffer<uint32_t> tile_count_, offsets_, values_, sorted_ids_;
   DeviceBuffer<uint64_t> keys_, sorted_keys_;
   DeviceBuffer<uint2> ranges_;
+  DeviceBuffer<uint32_t> tile_order_, tile_work_, tile_ids_, sorted_tile_work_;
   DeviceBuffer<float> rgb_, depth_, alpha_, ins_;
   DeviceBuffer<uint32_t> dominant_, labels_;
   DeviceBuffer<float> t_final_, depth_raw_;
