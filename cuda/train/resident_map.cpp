@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "dqo_map/gaussians/removal_plan.h"
+
 namespace dqo::cuda::detail {
 
 namespace {
@@ -32,10 +34,6 @@ void fetch(std::vector<T>* host, const T* device, size_t n, cudaStream_t stream)
 }
 
 }  // namespace
-
-ResidentMap::~ResidentMap() {
-  if (scan_temp_) cudaFree(scan_temp_);
-}
 
 void ResidentMap::sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& adam, cudaStream_t stream) {
   const size_t n = map.size();
@@ -91,32 +89,35 @@ void ResidentMap::remove_if(const std::vector<uint8_t>& remove, cudaStream_t str
   }
   const size_t n = count_;
   if (n == 0) return;
-  const size_t kept = n - static_cast<size_t>(std::count_if(remove.begin(), remove.begin() + n,
-                                                             [](uint8_t r) { return r != 0; }));
-  if (kept == n) return;
+  // The host's plan, over its whole mask (it may cover Gaussians appended since the last batch).
+  // The device makes the moves whose source it holds (the first ones: sources ascend) and keeps
+  // the prefix it then has as the host does: up to the first hole filled from beyond it, or all
+  // it held that survives. The next sync_up() sends the rest.
+  const gs::RemovalPlan plan = gs::plan_removal(remove);
+  size_t moves = 0;
+  while (moves < plan.sources.size() && plan.sources[moves] < n) ++moves;
+  const size_t kept = std::min(moves < plan.holes.size() ? size_t{plan.holes[moves]} : plan.kept, n);
+  if (plan.kept == remove.size()) return;  // nothing removed
   valid_ = false;  // until compacted
   synced_map_ = nullptr;  // in step again with the next sync_up()
   stream_ = stream;
-  uint8_t* mask = remove_.ensure(n, "removal mask");
-  check(cudaMemcpyAsync(mask, remove.data(), n, cudaMemcpyHostToDevice, stream), "removal mask");
-  uint32_t* keep = keep_.ensure(n + 1, "removal mask");
-  uint32_t* offsets = offsets_.ensure(n + 1, "removal mask");
-  launch_keep_flags(n, mask, keep, stream);
-  check(cudaGetLastError(), "removal mask");
-  check(exclusive_scan(n, keep, offsets, &scan_temp_, &scan_temp_bytes_, stream), "removal mask");
-  uint32_t* scratch = scratch_.ensure(4 * n, "removal scratch");
-  // Each array compacted into the scratch and copied back.
+  // The plan up (copies from pageable memory: the host vectors may go when the calls return),
+  // then each array's holes filled in place.
+  uint32_t* holes = holes_.ensure(moves, "removal plan");
+  uint32_t* sources = sources_.ensure(moves, "removal plan");
+  if (moves > 0) {
+    check(cudaMemcpyAsync(holes, plan.holes.data(), moves * sizeof(uint32_t), cudaMemcpyHostToDevice, stream),
+          "removal plan");
+    check(cudaMemcpyAsync(sources, plan.sources.data(), moves * sizeof(uint32_t), cudaMemcpyHostToDevice, stream),
+          "removal plan");
+  }
   auto words = [&](void* array, size_t width) {
-    uint32_t* a = static_cast<uint32_t*>(array);
-    launch_compact(n, width, mask, offsets, a, scratch, stream);
+    launch_fill_holes(moves, width, holes, sources, static_cast<uint32_t*>(array), stream);
     check(cudaGetLastError(), "removal");
-    check(cudaMemcpyAsync(a, scratch, kept * width * 4, cudaMemcpyDeviceToDevice, stream), "removal");
   };
   auto bytes = [&](uint8_t* a) {
-    uint8_t* s = reinterpret_cast<uint8_t*>(scratch);
-    launch_compact(n, 1, mask, offsets, a, s, stream);
+    launch_fill_holes(moves, 1, holes, sources, a, stream);
     check(cudaGetLastError(), "removal");
-    check(cudaMemcpyAsync(a, s, kept, cudaMemcpyDeviceToDevice, stream), "removal");
   };
   words(position_.get(), 3);
   words(log_scale_.get(), 3);
@@ -225,7 +226,7 @@ size_t ResidentMap::bytes() const {
   size_t total = position_.bytes() + log_scale_.bytes() + rotation_.bytes() + colour_.bytes() + confidence_.bytes() +
                  opacity_.bytes() + steps_.bytes() + object_id_.bytes() + stable_.bytes() + type_.bytes();
   for (int a = 0; a < 4; ++a) total += m_[a].bytes() + v_[a].bytes();
-  return total + remove_.bytes() + keep_.bytes() + offsets_.bytes() + scratch_.bytes() + scan_temp_bytes_;
+  return total + holes_.bytes() + sources_.bytes();
 }
 
 }  // namespace dqo::cuda::detail

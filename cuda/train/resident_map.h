@@ -9,7 +9,7 @@
 //   down: the trained attributes (position, log-scale, rotation, colour, confidence: 56 bytes);
 //         the optimiser state stays on the device until asked for (download_optimiser()).
 // The host may append Gaussians and change those two flags freely; it removes Gaussians through
-// remove_if() with GaussianMap::remove_if's mask (the device compacts its arrays the same way);
+// remove_if() with GaussianMap::remove_if's mask (the device fills the holes by the same plan);
 // anything else that changes the map (a loaded one) calls invalidate(), and the next sync_up()
 // sends everything.
 
@@ -106,18 +106,14 @@ class ResidentMap {
   GrowingBuffer<float> m_[4], v_[4];  // position, log-scale, rotation, colour
   GrowingBuffer<uint32_t> steps_, object_id_;
   GrowingBuffer<uint8_t> stable_, type_;
-  // remove_if()'s scratch: the mask, keep flags, their scan and a compacted copy.
-  DeviceBuffer<uint8_t> remove_;
-  DeviceBuffer<uint32_t> keep_, offsets_;
-  DeviceBuffer<uint32_t> scratch_;
-  void* scan_temp_ = nullptr;
-  size_t scan_temp_bytes_ = 0;
+  // remove_if()'s plan on the device (gs::RemovalPlan's holes and sources).
+  DeviceBuffer<uint32_t> holes_, sources_;
 
  public:
   ResidentMap() = default;
   ResidentMap(const ResidentMap&) = delete;
   ResidentMap& operator=(const ResidentMap&) = delete;
-  ~ResidentMap();
+  ~ResidentMap() = default;
 };
 
 // The rasteriser and the training engine of one backend (cuda_backend.cpp), sharing `resident`:

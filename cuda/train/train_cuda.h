@@ -62,14 +62,13 @@ void launch_adam(const DeviceTrainable& t, const uint32_t* tile_count, const flo
                  const float* grad_log_scale, const float* grad_rotation, const float* grad_colour,
                  const AdamRates& rates, cudaStream_t stream);
 
-// The resident map's remove_if (train_compact.cu). keep[i] = (remove[i] == 0) for i < n and
-// keep[n] = 0 (exclusive_scan() of n + 1 entries then ends in the count kept).
-void launch_keep_flags(size_t n, const uint8_t* remove, uint32_t* keep, cudaStream_t stream);
-// dst[offsets[i]·width + c] = src[i·width + c] for every i < n with remove[i] == 0, c < width
-// (offsets: the exclusive scan of the keep flags); for 4-byte (float bits too) and 1-byte values.
-void launch_compact(size_t n, size_t width, const uint8_t* remove, const uint32_t* offsets, const uint32_t* src,
-                    uint32_t* dst, cudaStream_t stream);
-void launch_compact(size_t n, size_t width, const uint8_t* remove, const uint32_t* offsets, const uint8_t* src,
-                    uint8_t* dst, cudaStream_t stream);
+// The resident map's remove_if (train_compact.cu), by the host's RemovalPlan
+// (dqo_map/gaussians/removal_plan.h): a[holes[k]·width + c] = a[sources[k]·width + c] for every
+// k < moves, c < width, in place (holes lie below the new size, sources at or above it: no entry
+// is both read and written); for 4-byte (float bits too) and 1-byte values.
+void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint32_t* a,
+                       cudaStream_t stream);
+void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint8_t* a,
+                       cudaStream_t stream);
 
 }  // namespace dqo::cuda::detail

@@ -1,47 +1,35 @@
 #pragma once
-// Removal of the removed Gaussians' entries from per-Gaussian arrays, in place and in order (the
-// map's arrays, the optimiser's moments), every array at once on threads of its own: at a million
-// Gaussians the map and its optimiser state are about 200 MB to move, 60 ms on one core.
+// Removal of the removed Gaussians' entries from per-Gaussian arrays by one plan
+// (dqo_map/gaussians/removal_plan.h: the holes filled from the end), every array of a map at once.
 
-#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <vector>
 
+#include "dqo_map/gaussians/removal_plan.h"
 #include "parallel.h"
 
 namespace dqo::gs::detail {
 
-// Keeps the `width` values of every item i with remove[i] == 0.
-template <typename T>
-void compact(std::vector<T>* values, size_t width, const std::vector<uint8_t>& remove) {
-  size_t out = 0;
-  for (size_t i = 0; i < remove.size(); ++i) {
-    if (remove[i]) continue;
-    if (out != i) std::copy_n(values->begin() + i * width, width, values->begin() + out * width);
-    ++out;
-  }
-  values->resize(out * width);
-}
-
-// Compacts several arrays by one mask: add() each, then run().
+// Applies one mask's plan to several arrays: add() each, then run().
 class Compaction {
  public:
-  explicit Compaction(const std::vector<uint8_t>& remove) : remove_(remove) {}
+  explicit Compaction(const std::vector<uint8_t>& remove) : plan_(plan_removal(remove)) {}
+  const RemovalPlan& plan() const { return plan_; }
   template <typename T>
   void add(std::vector<T>* values, size_t width) {
-    jobs_.push_back([values, width, this] { compact(values, width, remove_); });
+    jobs_.push_back([values, width, this] { apply_removal(values, width, plan_); });
   }
   void run() {
-    // Small maps on the calling thread: handing the copies to threads would cost more than them.
-    const int threads = remove_.size() < kThreadedFrom ? 1 : resolve_threads(0);
+    // Few moves on the calling thread: handing them to threads would cost more than them.
+    const int threads = plan_.holes.size() < kThreadedFrom ? 1 : resolve_threads(0);
     parallel_for_dynamic(threads, jobs_.size(), [this](size_t k) { jobs_[k](); });
     jobs_.clear();
   }
 
  private:
-  static constexpr size_t kThreadedFrom = 1 << 16;  // Gaussians
-  const std::vector<uint8_t>& remove_;
+  static constexpr size_t kThreadedFrom = 1 << 16;  // moves
+  RemovalPlan plan_;
   std::vector<std::function<void()>> jobs_;
 };
 

@@ -150,9 +150,10 @@ TEST(CudaTrainingEngine, WholeMappingRunsReachTheHostsQuality) {
   // Past the first keyframe the two runs draw differently (how many error pixels each samples
   // depends on its own render): compared as a whole, by the renders' error over every view.
   // The GPU's run also differs from one run to the next (float atomics sum in any order, and six
-  // keyframes of adding and pruning carry that on): over twelve runs on an H100 (2026-11-27) its
-  // error was 0.95-1.02 of the host's for seed 7 and 0.97-1.05 for seed 8. So the seeds' errors
-  // are compared summed (within 3 %), and each seed's within 10 % (a failure of one scene shows).
+  // keyframes of adding and pruning carry that on): on an H100 (2026-11-27) one seed's error was
+  // 0.95-1.05 of the host's over twelve runs, and the four seeds' summed error 0.984 and 1.029
+  // in two. So the sum is held within 5 % and each seed within 10 %: beyond the runs' spread, a
+  // GPU trainer that learns worse than the host's fails.
   double total_h = 0, total_g = 0;
   for (uint64_t seed : {7u, 8u, 9u, 10u}) {
     const gs::GaussianMap truth = truth_map(seed);
@@ -181,7 +182,7 @@ TEST(CudaTrainingEngine, WholeMappingRunsReachTheHostsQuality) {
     total_h += eh, total_g += eg;
   }
   std::printf("all seeds: gpu / host %.3f\n", total_g / total_h);
-  EXPECT_LE(total_g, 1.03 * total_h);
+  EXPECT_LE(total_g, 1.05 * total_h);
 }
 
 TEST(CudaTrainingEngine, SettingsItDoesNotCoverStayOnTheHost) {

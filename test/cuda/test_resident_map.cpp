@@ -13,6 +13,7 @@
 #include "../../cuda/train/resident_map.h"
 #include "../gaussians/raster_test_util.h"
 #include "dqo_map/cuda/device_info.h"
+#include "dqo_map/gaussians/removal_plan.h"
 
 namespace dqo::cuda {
 namespace {
@@ -172,12 +173,9 @@ TEST(ResidentMap, KeepsTheMomentsTheHostLeavesToIt) {
     adam.remove_if(remove);
     resident.remove_if(remove, stream);
     resident.sync_up(map, adam, stream);
-    const auto keep = [&](std::vector<float>* v, size_t width) {
-      std::vector<float> out;
-      for (size_t i = 0; i < remove.size(); ++i)
-        if (!remove[i]) out.insert(out.end(), v->begin() + i * width, v->begin() + (i + 1) * width);
-      *v = out;
-    };
+    // The host's removal of the same mask (removal_plan.h, tested on its own in test_map.cpp).
+    const gs::RemovalPlan plan = gs::plan_removal(remove);
+    const auto keep = [&](std::vector<float>* v, size_t width) { gs::apply_removal(v, width, plan); };
     const size_t width[4] = {3, 3, 4, 3};
     gs::GaussianAdam::Moments* em[4] = {&expected.position, &expected.log_scale, &expected.rotation, &expected.colour};
     for (int a = 0; a < 4; ++a) keep(&em[a]->m, width[a]), keep(&em[a]->v, width[a]);

@@ -155,8 +155,9 @@ TEST(Adam, StateFollowsRemovalsAndAdditions) {
   adam.step(next, std::vector<uint8_t>(4, 1), &map);
   ASSERT_EQ(adam.size(), 4u);
 
-  // Reference: per kept Gaussian, a scalar Adam fed the same gradients from its own history.
-  const size_t kept[3] = {0, 2, 3};
+  // Reference: per kept Gaussian, a scalar Adam fed the same gradients from its own history. The
+  // removal filled the hole at 1 with Gaussian 3 (removal_plan.h): new order 0, 3, 2.
+  const size_t kept[3] = {0, 3, 2};
   for (size_t j = 0; j < 3; ++j) {
     const size_t old = kept[j];
     for (int k = 0; k < 3; ++k) {
@@ -190,20 +191,21 @@ TEST(Adam, MomentsLeftToAnEngine) {
                          &adam.state().opacity, &adam.state().colour}) {
     EXPECT_TRUE(mo->m.empty() && mo->v.empty());
   }
+  // Steps 1 0 1 1 0 1; the holes at 0 and 3 are filled by Gaussians 4 and 5: 0 0 1 1.
   const std::vector<uint8_t> remove = {1, 0, 0, 1, 0, 0};
   map.remove_if(remove);
   adam.remove_if(remove);
-  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{0, 1, 0, 1}));
+  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{0, 0, 1, 1}));
   map.add(GaussianInit{});
   adam.resize_for(map);
-  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{0, 1, 0, 1, 0}));
+  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{0, 0, 1, 1, 0}));
   EXPECT_TRUE(adam.state().colour.v.empty());
   EXPECT_THROW(adam.step(random_gradients(map, &rng), std::vector<uint8_t>(5, 1), &map), std::logic_error);
   // Kept again: zero moments sized for the map, and steps run.
   adam.keep_moments_on_host(true);
   adam.step(random_gradients(map, &rng), std::vector<uint8_t>(5, 1), &map);
   EXPECT_EQ(adam.state().rotation.v.size(), 20u);
-  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{1, 2, 1, 2, 1}));
+  EXPECT_EQ(adam.state().steps, (std::vector<uint32_t>{1, 1, 2, 2, 1}));
 }
 
 TEST(Adam, OpacityThroughLogitWhenTrainable) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "dqo_map/gaussians/gaussian_map.h"
+#include "dqo_map/gaussians/removal_plan.h"
 
 namespace dqo::gs {
 namespace {
@@ -157,6 +158,38 @@ TEST(GaussianMap, CountsByObjectMatchAPlainCount) {
   for (const auto& [id, count] : expected) ids.push_back(id);
   EXPECT_EQ(map.object_ids(), ids);
   EXPECT_TRUE(GaussianMap().counts_by_object().empty());
+}
+
+// A removal keeps exactly the unremoved entries, moves none that sit below the new size, and
+// moves as many as it removed there; checked against a plain set difference on random masks.
+TEST(RemovalPlan, KeepsTheSurvivorsAndMovesOnlyIntoHoles) {
+  std::mt19937 rng(3);
+  for (int trial = 0; trial < 200; ++trial) {
+    const size_t n = std::uniform_int_distribution<size_t>(0, 60)(rng);
+    const double p = std::uniform_real_distribution<double>(0.0, 1.0)(rng);
+    std::vector<uint8_t> remove(n);
+    std::vector<int> values(2 * n), survivors;
+    for (size_t i = 0; i < n; ++i) {
+      remove[i] = std::bernoulli_distribution(p)(rng) ? 1 : 0;
+      values[2 * i] = static_cast<int>(i), values[2 * i + 1] = -static_cast<int>(i);  // width 2
+      if (!remove[i]) survivors.push_back(static_cast<int>(i));
+    }
+    const RemovalPlan plan = plan_removal(remove);
+    ASSERT_EQ(plan.kept, survivors.size());
+    ASSERT_EQ(plan.holes.size(), plan.sources.size());
+    apply_removal(&values, 2, plan);
+    ASSERT_EQ(values.size(), 2 * plan.kept);
+    std::vector<int> got;
+    for (size_t j = 0; j < plan.kept; ++j) {
+      EXPECT_EQ(values[2 * j + 1], -values[2 * j]) << "an entry's values split";
+      if (!remove[j]) {
+        EXPECT_EQ(values[2 * j], static_cast<int>(j)) << "a survivor below the new size moved";
+      }
+      got.push_back(values[2 * j]);
+    }
+    std::sort(got.begin(), got.end());
+    EXPECT_EQ(got, survivors) << "trial " << trial;
+  }
 }
 
 TEST(GaussianMap, BytesUsed) {
