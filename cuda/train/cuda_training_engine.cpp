@@ -93,6 +93,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   size_t device_bytes() const override {
     size_t total = 0;
     for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
+    for (const auto& cv : spare_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto* b : {&v_rgb_, &v_depth_, &v_ins_}) total += b->bytes();
     total += rgb8_.bytes();
     return total + resident_->bytes() + gradients_.bytes() + pipe_.bytes() + sums_.bytes();
@@ -179,21 +180,34 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   void cache_views(const std::vector<gs::TrainingView>& views) {
     std::map<uint64_t, std::unique_ptr<CachedView>> kept;
     for (const gs::TrainingView& view : views) {
-      if (kept.count(view.key)) continue;
       auto it = cache_.find(view.key);
       if (it != cache_.end()) {
         kept.emplace(view.key, std::move(it->second));
         cache_.erase(it);
-        continue;
       }
+    }
+    // The views that left the window lend their buffers to the new ones (a pool of image buffers:
+    // no cudaMalloc and cudaFree a keyframe, each of which waits for the device). Reuse is
+    // stream-ordered after the batches that read them; at most kSpareViews stay unused.
+    for (auto& [key, cv] : cache_) spare_.push_back(std::move(cv));
+    cache_.clear();
+    for (const gs::TrainingView& view : views) {
+      if (kept.count(view.key)) continue;
       const PinholeCamera& cam = *view.camera;
       const size_t pixels = static_cast<size_t>(cam.width) * cam.height;
       if (!view.rgb || !view.depth || !view.labels || view.rgb->data.size() != 3 * pixels ||
           view.depth->data.size() != pixels || view.labels->data.size() != pixels) {
         throw std::invalid_argument("CUDA training engine: a view's images do not match its camera");
       }
-      auto cv = std::make_unique<CachedView>();
+      std::unique_ptr<CachedView> cv;
+      if (!spare_.empty()) {
+        cv = std::move(spare_.back());
+        spare_.pop_back();
+      } else {
+        cv = std::make_unique<CachedView>();
+      }
       cv->pixels = pixels;
+      cv->valid_depth = 0;
       for (const float d : view.depth->data) cv->valid_depth += valid_depth(d) ? 1 : 0;
       const cudaStream_t stream = pipe_.stream();
       // 8 bits up (a quarter of the floats' bytes), floats made here.
@@ -205,14 +219,18 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       kept.emplace(view.key, std::move(cv));
     }
     // The host vectors stay alive until the batch ends (the trainer's window), so the copies need
-    // no wait here; the views that left the window are freed after the stream's earlier work.
+    // no wait here.
     check(cudaStreamSynchronize(pipe_.stream()), "view images");
     cache_ = std::move(kept);
+    if (spare_.size() > kSpareViews) spare_.resize(kSpareViews);  // freed: the stream is idle now
   }
+
+  static constexpr size_t kSpareViews = 2;
 
   detail::StageClock clock_;  // before pipe_: the pipeline holds a pointer to it
   detail::RasterPipeline pipe_;
   std::map<uint64_t, std::unique_ptr<CachedView>> cache_;
+  std::vector<std::unique_ptr<CachedView>> spare_;  // buffers of views gone from the window
   std::shared_ptr<detail::ResidentMap> resident_;  // shared with the backend's rasteriser
   detail::GradientBuffers gradients_;
   DeviceBuffer<float> v_rgb_, v_depth_, v_ins_;

@@ -149,13 +149,16 @@ size_t GaussianMap::relabel(uint32_t from, uint32_t to) {
   return n;
 }
 
-size_t GaussianMap::relabel_each(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id) {
-  if (which.size() != size() || new_id.size() != size())
-    throw std::invalid_argument("GaussianMap::relabel_each: masks must have one entry per Gaussian");
+size_t GaussianMap::relabel_each(const std::vector<std::pair<uint32_t, uint32_t>>& changes) {
+  for (const auto& [index, id] : changes) {
+    if (index >= size())
+      throw std::invalid_argument("GaussianMap::relabel_each: index " + std::to_string(index) + " of " +
+                                  std::to_string(size()) + " Gaussians");
+  }
   size_t n = 0;
-  for (size_t i = 0; i < which.size(); ++i) {
-    if (!which[i] || object_id_[i] == new_id[i]) continue;
-    object_id_[i] = new_id[i];
+  for (const auto& [index, id] : changes) {
+    if (object_id_[index] == id) continue;
+    object_id_[index] = id;
     ++n;
   }
   if (n) revision_.bump();

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -327,30 +328,36 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   rs.check_labels = check_labels;
   const float* pos = map_.positions().data();
   const auto& ids = map_.object_ids_per_gaussian();
-  std::vector<uint8_t> relabel(map_.size(), 0);
-  std::vector<uint32_t> new_id(map_.size(), 0);
   // Each Gaussian on its own (its entries of the per-Gaussian arrays only): over threads, with
-  // the same result on any number of them; a million Gaussians took 100 ms on one core.
+  // the same result on any number of them; a million Gaussians took 100 ms on one core. The few
+  // relabels are listed per chunk (no per-Gaussian arrays to fill and walk for them), then put
+  // in index order.
+  std::vector<std::pair<uint32_t, uint32_t>> relabels;
+  std::mutex relabels_mutex;
   detail::parallel_for_chunks(detail::resolve_threads(0), map_.size(), [&](size_t begin, size_t end) {
+    std::vector<std::pair<uint32_t, uint32_t>> found;
     for (size_t i = begin; i < end; ++i) {
-      relabel[i] = review_gaussian(view, rs, pos + 3 * i, ids[i], g.colour.data() + 3 * i, &usefulness_[i],
-                                   &invisible_count_[i], &relabel_votes_[i], &new_id[i]);
+      uint32_t new_id = 0;
+      if (review_gaussian(view, rs, pos + 3 * i, ids[i], g.colour.data() + 3 * i, &usefulness_[i],
+                          &invisible_count_[i], &relabel_votes_[i], &new_id))
+        found.emplace_back(static_cast<uint32_t>(i), new_id);
     }
+    if (found.empty()) return;
+    std::lock_guard<std::mutex> lock(relabels_mutex);
+    relabels.insert(relabels.end(), found.begin(), found.end());
   });
-  relabel_gaussians(relabel, new_id);
+  std::sort(relabels.begin(), relabels.end());
+  relabel_gaussians(relabels);
 }
 
 // In place: a relabelled Gaussian keeps its index, attributes, optimiser state and counters (its
 // votes start over). (It used to leave the map and come back appended, which cost a compaction
 // of every array per keyframe and the optimiser's moments of the Gaussians that moved.)
-void GaussianTrainer::relabel_gaussians(const std::vector<uint8_t>& which,
-                                        const std::vector<uint32_t>& new_id) {
-  const size_t n = map_.relabel_each(which, new_id);
+void GaussianTrainer::relabel_gaussians(const std::vector<std::pair<uint32_t, uint32_t>>& changes) {
+  const size_t n = map_.relabel_each(changes);
   if (n == 0) return;
   relabelled_ += n;
-  for (size_t i = 0; i < which.size(); ++i) {
-    if (which[i]) relabel_votes_[i] = 0;
-  }
+  for (const auto& [index, id] : changes) relabel_votes_[index] = 0;
 }
 
 RenderSettings GaussianTrainer::mask_settings(const StoredKeyframe& kf) const {

@@ -144,13 +144,11 @@ TEST(GaussianMap, CountsByObjectMatchAPlainCount) {
     const size_t run = 1 + rng() % 5000;
     for (size_t k = 0; k < run; ++k) map.add(with_id(id, 1.f));
   }
-  std::vector<uint8_t> which(map.size(), 0);
-  std::vector<uint32_t> new_id(map.size(), 0);
+  std::vector<std::pair<uint32_t, uint32_t>> changes;
   for (size_t i = 0; i < map.size(); ++i) {
-    which[i] = rng() % 50 == 0;
-    new_id[i] = 10 + rng() % 3;
+    if (rng() % 50 == 0) changes.emplace_back(static_cast<uint32_t>(i), 10 + rng() % 3);
   }
-  map.relabel_each(which, new_id);
+  map.relabel_each(changes);
   std::map<uint32_t, size_t> expected;
   for (uint32_t id : map.object_ids_per_gaussian()) ++expected[id];
   EXPECT_EQ(map.counts_by_object(), expected);
@@ -221,12 +219,13 @@ TEST(GaussianMap, RevisionChangesWithEveryStructuralEdit) {
   EXPECT_EQ(map.relabel(2, 3), 2u);
   const uint64_t relabelled = map.revision();
   EXPECT_NE(relabelled, two);
-  EXPECT_EQ(map.relabel_each({1, 1}, {3, 3}), 0u) << "already 3";
+  EXPECT_EQ(map.relabel_each({{0, 3}, {1, 3}}), 0u) << "already 3";
   EXPECT_EQ(map.revision(), relabelled);
-  EXPECT_EQ(map.relabel_each({0, 1}, {7, 4}), 1u);
+  EXPECT_EQ(map.relabel_each({{1, 4}}), 1u);
   EXPECT_NE(map.revision(), relabelled);
-  EXPECT_EQ(map.object_ids_per_gaussian(), (std::vector<uint32_t>{3, 4})) << "only the flagged one";
-  EXPECT_THROW(map.relabel_each({1}, {1}), std::invalid_argument);
+  EXPECT_EQ(map.object_ids_per_gaussian(), (std::vector<uint32_t>{3, 4})) << "only the listed one";
+  EXPECT_THROW(map.relabel_each({{0, 5}, {2, 1}}), std::invalid_argument);
+  EXPECT_EQ(map.object_ids_per_gaussian(), (std::vector<uint32_t>{3, 4})) << "nothing changed before the throw";
   const uint64_t each = map.revision();
   EXPECT_EQ(map.remove_if({1, 0}), 1u);
   EXPECT_NE(map.revision(), each);

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -86,9 +87,10 @@ class GaussianMap {
   // Every Gaussian of `from` becomes `to`'s (an object merged into another; to = 0 returns them to
   // the background). Returns how many were relabelled.
   size_t relabel(uint32_t from, uint32_t to);
-  // Gaussians one by one: new_id[i] for each i with which[i] != 0 (both size()); the labels that
-  // follow the observations (GaussianTrainer). Returns how many changed.
-  size_t relabel_each(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id);
+  // Gaussians one by one: each (index, new ID) of `changes` (the labels that follow the
+  // observations, GaussianTrainer: a handful a keyframe). Returns how many changed; an index out
+  // of range throws std::invalid_argument before anything changes.
+  size_t relabel_each(const std::vector<std::pair<uint32_t, uint32_t>>& changes);
 
   // Bytes held by the attribute arrays (capacity, not size).
   size_t bytes_used() const;

@@ -232,7 +232,7 @@ class GaussianTrainer {
   // Visibility, labels and usefulness from one view; usefulness_only: the budget's measure alone.
   void review_gaussians(const StoredKeyframe& kf, const RenderState& state,
                         bool usefulness_only = false);
-  void relabel_gaussians(const std::vector<uint8_t>& which, const std::vector<uint32_t>& new_id);
+  void relabel_gaussians(const std::vector<std::pair<uint32_t, uint32_t>>& changes);
   // The masks' render: settings(0, false) with each pixel's own object's instance opacity.
   RenderSettings mask_settings(const StoredKeyframe& kf) const;
   // out: the render from the keyframe with mask_settings(); null when the map is empty
