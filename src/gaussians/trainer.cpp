@@ -681,7 +681,7 @@ void GaussianTrainer::prune(KeyframeReport* report) {
     const auto score = [&](uint32_t i) {
       return ids[i] != 0 ? params_.budget_object_weight * usefulness_[i] : usefulness_[i];
     };
-    // Ties (equal scores) break by index, oldest first, so the result is deterministic.
+    // Ties (equal scores) break by index, so the result is deterministic.
     std::nth_element(order.begin(), order.begin() + excess, order.end(),
                      [&score](uint32_t a, uint32_t b) {
                        const float sa = score(a), sb = score(b);

@@ -64,8 +64,9 @@ class GaussianMap {
   size_t add(const GaussianInit& g);
   void reserve(size_t n);
 
-  // Removes every Gaussian i with remove[i] != 0 (remove.size() == size()); keeps the order of the
-  // rest. Returns how many were removed.
+  // Removes every Gaussian i with remove[i] != 0 (remove.size() == size()): the removed entries
+  // below the new size take the last kept Gaussians (gaussians/removal_plan.h), the others stay
+  // where they are. Returns how many were removed.
   size_t remove_if(const std::vector<uint8_t>& remove);
 
   // Gaussian i as add() takes it (its opacity explicit); confidence and stable flag apart.
