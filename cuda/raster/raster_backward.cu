@@ -4,10 +4,10 @@
 // any of its pixels, in shared-memory batches; a pixel takes part from its own last contributor on,
 // reconstructs the transmittance in front of each Gaussian from its final one and adds that
 // Gaussian's share of the 2D gradients. As in the forward pass, a warp (an 8×4 block) visits only
-// the splats whose α box meets its block, found 32 at a time by one ballot. A warp sums its pixels' shares (a reduce-scatter) before
-// ten of its lanes add them to the Gaussian's total (float atomics: the sum's order, and so its
-// last bits, vary from run to run). Then every visible Gaussian's 2D gradients go through
-// project_gaussian_vjp().
+// the splats whose α box meets its block, found 32 at a time by one ballot. A warp sums its
+// pixels' shares (a reduce-scatter) before ten of its lanes add them to the Gaussian's total
+// (float atomics: the sum's order, and so its last bits, vary from run to run). Then every visible
+// Gaussian's 2D gradients go through project_gaussian_vjp().
 
 #include "raster_cuda.h"
 

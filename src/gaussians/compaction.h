@@ -15,7 +15,6 @@ namespace dqo::gs::detail {
 class Compaction {
  public:
   explicit Compaction(const std::vector<uint8_t>& remove) : plan_(plan_removal(remove)) {}
-  const RemovalPlan& plan() const { return plan_; }
   template <typename T>
   void add(std::vector<T>* values, size_t width) {
     jobs_.push_back([values, width, this] { apply_removal(values, width, plan_); });
