@@ -98,6 +98,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       throw std::invalid_argument("CUDA training engine: the review's view images do not match its camera");
     const cudaStream_t stream = pipe_.stream();
     resident_->wait();
+    clock_.start(stream);  // with DQO_CUDA_STAGE_TIMES: the review's pass counts as one pass
     // The view's depth and labels up; one pass of the map kept on the device, its colour gradient
     // under the probe (1, [label = 0], [label != 0]) summed per Gaussian.
     gs::ReviewView dv = rv;
