@@ -138,6 +138,17 @@ void RasterPipeline::backward(const DeviceGaussians& g, const gs::CameraView<flo
     throw std::invalid_argument(
         "CUDA rasteriser: backward() needs a forward pass that kept its state, on the same Gaussians and camera");
   }
+  backward_2d(grad_out);
+  launch_project_vjp(g, cam, tile_count_.get(), grad2d_.get(), out.position, out.log_scale, out.rotation, out.opacity,
+                     out.colour, zero_culled, stream_);
+  check(cudaGetLastError(), "projection backward");
+  mark(7);
+  if (clock_) clock_->end(Stage::kBackward, stream_);
+}
+
+void RasterPipeline::backward_2d(const ImageGradientsDevice& grad_out) {
+  if (!state_.t_final)
+    throw std::invalid_argument("CUDA rasteriser: backward() needs a forward pass that kept its state");
   const size_t n = n_;
   Grad2D* grad2d = grad2d_.get();  // zeroed for the binned Gaussians by the forward pass ...
   if (!grad2d_zeroed_)              // ... unless a backward pass of the same forward one ran before
@@ -147,11 +158,6 @@ void RasterPipeline::backward(const DeviceGaussians& g, const gs::CameraView<flo
   launch_backward(width_, height_, tile_order_.get(), ranges_.get(), sorted_ids_.get(), splats_.get(), settings_,
                   state_, grad_out, grad2d, stream_);
   check(cudaGetLastError(), "backward");
-  launch_project_vjp(g, cam, tile_count_.get(), grad2d, out.position, out.log_scale, out.rotation, out.opacity,
-                     out.colour, zero_culled, stream_);
-  check(cudaGetLastError(), "projection backward");
-  mark(7);
-  if (clock_) clock_->end(Stage::kBackward, stream_);
 }
 
 }  // namespace dqo::cuda::detail

@@ -61,6 +61,10 @@ class RasterPipeline {
   // culled Gaussian not written per iteration).
   void backward(const DeviceGaussians& g, const gs::CameraView<float>& cam, const ImageGradientsDevice& grad_out,
                 const DeviceAttributeGradients& out, bool zero_culled = true);
+  // The first half of backward(): the latest forward pass's gradients of each Gaussian's screen-space
+  // quantities, summed over pixels into grad2d() (valid where tile_counts() > 0), and no more.
+  void backward_2d(const ImageGradientsDevice& grad_out);
+  const Grad2D* grad2d() const { return grad2d_.get(); }
   // Per Gaussian, the tiles the latest forward pass binned it into (0: culled).
   const uint32_t* tile_counts() const { return tile_count_.get(); }
 

@@ -5,6 +5,7 @@
 
 #include "dqo_map/cuda/cuda_training_engine.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -84,6 +85,67 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       resident_->invalidate();  // the next batch sends everything
     }
   }
+  bool review(const gs::GaussianMap& map, const gs::TrainingView& view, const gs::RenderSettings& settings,
+              const gs::ReviewView& rv, const gs::ReviewSettings& rs, float* usefulness, uint16_t* invisible,
+              uint8_t* votes, std::vector<std::pair<uint32_t, uint32_t>>* relabels) override {
+    if (!resident_->shows(map)) return false;  // the trainer syncs first; else its own loop runs
+    const size_t n = map.size();
+    relabels->clear();
+    if (n == 0) return true;
+    const PinholeCamera& camera = *view.camera;
+    const size_t pixels = static_cast<size_t>(camera.width) * camera.height;
+    if (!view.depth || !view.labels || view.depth->data.size() != pixels || view.labels->data.size() != pixels)
+      throw std::invalid_argument("CUDA training engine: the review's view images do not match its camera");
+    const cudaStream_t stream = pipe_.stream();
+    resident_->wait();
+    clock_.start(stream);  // with DQO_CUDA_STAGE_TIMES: the review's pass counts as one pass
+    // The view's depth and labels up; one pass of the map kept on the device, its colour gradient
+    // under the probe (1, [label = 0], [label != 0]) summed per Gaussian.
+    gs::ReviewView dv = rv;
+    dv.depth = upload(&review_depth_, view.depth->data, "review images", stream);
+    dv.labels = upload(&review_labels_, view.labels->data, "review images", stream);
+    const detail::DeviceGaussians g = resident_->gaussians();
+    const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, view.T_cw, settings.near);
+    gs::RenderSettings pass = settings;
+    pass.outputs = 0;
+    pipe_.forward(g, cam, pass, true);
+    float* v_rgb = v_rgb_.ensure(3 * pixels, "output gradients");
+    detail::launch_review_probe(pixels, dv.labels, v_rgb, stream);
+    check(cudaGetLastError(), "review probe");
+    detail::ImageGradientsDevice go;
+    go.rgb = v_rgb;
+    pipe_.backward_2d(go);
+    // The counters up, reviewed in place, down with the relabels (few: their count first).
+    float* d_usefulness = review_usefulness_.ensure(n, "review counters");
+    uint16_t* d_invisible = review_invisible_.ensure(n, "review counters");
+    uint8_t* d_votes = review_votes_.ensure(n, "review counters");
+    uint2* d_relabels = review_relabels_.ensure(n, "review relabels");
+    uint32_t* d_count = review_count_.ensure(1, "review relabels");
+    check(cudaMemcpyAsync(d_usefulness, usefulness, n * sizeof(float), cudaMemcpyHostToDevice, stream), "review");
+    check(cudaMemcpyAsync(d_invisible, invisible, n * sizeof(uint16_t), cudaMemcpyHostToDevice, stream), "review");
+    check(cudaMemcpyAsync(d_votes, votes, n, cudaMemcpyHostToDevice, stream), "review");
+    check(cudaMemsetAsync(d_count, 0, sizeof(uint32_t), stream), "review");
+    detail::launch_review(n, g.position, g.object_id, pipe_.tile_counts(), pipe_.grad2d(), dv, rs, d_usefulness,
+                          d_invisible, d_votes, d_relabels, d_count, stream);
+    check(cudaGetLastError(), "review");
+    uint32_t count = 0;
+    check(cudaMemcpyAsync(&count, d_count, sizeof(uint32_t), cudaMemcpyDeviceToHost, stream), "review");
+    check(cudaStreamSynchronize(stream), "review");
+    std::vector<uint2> listed(count);
+    if (count)
+      check(cudaMemcpyAsync(listed.data(), d_relabels, count * sizeof(uint2), cudaMemcpyDeviceToHost, stream),
+            "review");
+    // Into the caller's counters only once everything ran: a failure leaves them as they were.
+    check(cudaMemcpyAsync(usefulness, d_usefulness, n * sizeof(float), cudaMemcpyDeviceToHost, stream), "review");
+    check(cudaMemcpyAsync(invisible, d_invisible, n * sizeof(uint16_t), cudaMemcpyDeviceToHost, stream), "review");
+    check(cudaMemcpyAsync(votes, d_votes, n, cudaMemcpyDeviceToHost, stream), "review");
+    check(cudaStreamSynchronize(stream), "review");
+    relabels->reserve(count);
+    for (const uint2& r : listed) relabels->emplace_back(r.x, r.y);
+    std::sort(relabels->begin(), relabels->end());
+    return true;
+  }
+
   void fetch_optimiser_state(gs::GaussianAdam* adam) override {
     if (!resident_->valid() || adam->size() < resident_->count()) return;
     resident_->download_optimiser(adam, pipe_.stream());
@@ -236,6 +298,12 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   DeviceBuffer<float> v_rgb_, v_depth_, v_ins_;
   DeviceBuffer<uint8_t> rgb8_;  // a view's 8-bit colours on their way up (stream-ordered reuse)
   DeviceBuffer<double> sums_;
+  // review()'s: the view's depth and labels, the trainer's counters, the relabels and their count.
+  DeviceBuffer<float> review_depth_, review_usefulness_;
+  DeviceBuffer<uint32_t> review_labels_, review_count_;
+  DeviceBuffer<uint16_t> review_invisible_;
+  DeviceBuffer<uint8_t> review_votes_;
+  DeviceBuffer<uint2> review_relabels_;
 };
 
 }  // namespace

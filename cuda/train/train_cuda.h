@@ -9,6 +9,9 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "../raster/raster_cuda.h"
+#include "dqo_map/gaussians/math/review.h"
+
 namespace dqo::cuda::detail {
 
 // One training view's images on the device.
@@ -70,5 +73,16 @@ void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const 
                        cudaStream_t stream);
 void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint8_t* a,
                        cudaStream_t stream);
+
+// The keyframe review on the device (train_review.cu). The probe's output gradient per pixel:
+// v_rgb = (1, [label = 0], [label != 0]).
+void launch_review_probe(size_t pixels, const uint32_t* labels, float* v_rgb, cudaStream_t stream);
+// math/review.h's step for each of n Gaussians, with the colour sums of grad2d (zero where
+// tile_count is 0: the pass culled it); `view`'s depth and labels on the device. Each relabel
+// appends (index, new label) at atomicAdd(relabel_count), in no particular order.
+void launch_review(size_t n, const float* position, const uint32_t* object_id, const uint32_t* tile_count,
+                   const Grad2D* grad2d, const gs::ReviewView& view, const gs::ReviewSettings& settings,
+                   float* usefulness, uint16_t* invisible, uint8_t* votes, uint2* relabels, uint32_t* relabel_count,
+                   cudaStream_t stream);
 
 }  // namespace dqo::cuda::detail

@@ -291,22 +291,7 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   const bool check_labels = !usefulness_only && params_.relabel_fraction > 0.f;
   const bool check_usefulness = params_.max_gaussians > 0;
   if (!check_visibility && !check_labels && !check_usefulness) return;
-  const size_t n_pixels = kf.labels.data.size();
-  OutputGradients& probe = scratch_.probe;
-  probe.rgb.resize(3 * n_pixels);
-  detail::parallel_for_chunks(detail::resolve_threads(0), n_pixels, [&](size_t begin, size_t end) {
-    for (size_t p = begin; p < end; ++p) {
-      probe.rgb[3 * p] = 1.f;
-      probe.rgb[3 * p + 1] = kf.labels.data[p] == 0 ? 1.f : 0.f;
-      probe.rgb[3 * p + 2] = kf.labels.data[p] != 0 ? 1.f : 0.f;
-    }
-  });
-  MapGradients& g = scratch_.review;
-  g.colour_only = true;  // a GPU backend then brings back 3 of the 14 values per Gaussian
-  g.colour.clear();  // backward() sizes it, zero-filled, and adds
   const SE3 T_cw = kf.T_wc.inverse();
-  rasteriser_->backward(map_, kf.camera, T_cw, settings(0, false), state, probe, &g);
-
   ReviewView view;
   const Eigen::Matrix3d R = T_cw.rotation();
   for (int r = 0; r < 3; ++r) {
@@ -326,6 +311,31 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   rs.relabel_keyframes = params_.relabel_keyframes;
   rs.check_visibility = check_visibility;
   rs.check_labels = check_labels;
+  // Where the engine holds the map, on its device: no probe up, no gradients down, no loop here.
+  if (uses_engine()) {
+    const TrainingView tv{kf.key, &kf.camera, T_cw, &kf.rgb, &kf.depth, &kf.labels};
+    std::vector<std::pair<uint32_t, uint32_t>> relabels;
+    if (engine_->review(map_, tv, settings(0, false), view, rs, usefulness_.data(), invisible_count_.data(),
+                        relabel_votes_.data(), &relabels)) {
+      relabel_gaussians(relabels);
+      return;
+    }
+  }
+  const size_t n_pixels = kf.labels.data.size();
+  OutputGradients& probe = scratch_.probe;
+  probe.rgb.resize(3 * n_pixels);
+  detail::parallel_for_chunks(detail::resolve_threads(0), n_pixels, [&](size_t begin, size_t end) {
+    for (size_t p = begin; p < end; ++p) {
+      probe.rgb[3 * p] = 1.f;
+      probe.rgb[3 * p + 1] = kf.labels.data[p] == 0 ? 1.f : 0.f;
+      probe.rgb[3 * p + 2] = kf.labels.data[p] != 0 ? 1.f : 0.f;
+    }
+  });
+  MapGradients& g = scratch_.review;
+  g.colour_only = true;  // a GPU backend then brings back 3 of the 14 values per Gaussian
+  g.colour.clear();  // backward() sizes it, zero-filled, and adds
+  rasteriser_->backward(map_, kf.camera, T_cw, settings(0, false), state, probe, &g);
+
   const float* pos = map_.positions().data();
   const auto& ids = map_.object_ids_per_gaussian();
   // Each Gaussian on its own (its entries of the per-Gaussian arrays only): over threads, with

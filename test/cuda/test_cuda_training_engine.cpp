@@ -1,19 +1,27 @@
 // The CUDA training engine against the host trainer (skipped without a GPU): the same keyframes
 // through two GaussianTrainers, one iterating on the host with the CPU rasteriser, one on the GPU
 // engine. One step has the same gradients (1e-3) and steps the same Gaussians; a mapping step's
-// loss curve stays within 1 %; whole runs (add, train, prune) render as well; several seeds.
+// loss curve stays within 1 %; whole runs (add, train, prune) render as well; several seeds; the
+// keyframe review on the device keeps the host loop's counters and relabels.
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
+#include <limits>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "../gaussians/raster_test_util.h"
 #include "keyframe_test_util.h"
 #include "dqo_map/cuda/cuda_rasteriser.h"
 #include "dqo_map/cuda/cuda_training_engine.h"
 #include "dqo_map/cuda/device_info.h"
+#include "dqo_map/gaussians/math/review.h"
 #include "dqo_map/gaussians/trainer.h"
 
 namespace dqo::cuda {
@@ -183,6 +191,102 @@ TEST(CudaTrainingEngine, WholeMappingRunsReachTheHostsQuality) {
   }
   std::printf("all seeds: gpu / host %.3f\n", total_g / total_h);
   EXPECT_LE(total_g, 1.05 * total_h);
+}
+
+// The keyframe review on the device (TrainingEngine::review) against the host's loop over
+// math/review.h with the CPU rasteriser's colour sums: the same counters and relabels, but for the
+// few Gaussians whose sums (added in another order) sit on a threshold. A third of object 1's
+// Gaussians start labelled background and the views show them on its pixels: relabels happen.
+TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
+  if (!gpu_available()) GTEST_SKIP() << "no GPU";
+  const gs::GaussianMap truth = truth_map(3);
+  gs::GaussianMap map = truth;
+  std::vector<std::pair<uint32_t, uint32_t>> wrong;
+  for (uint32_t i : map.indices_of(1))
+    if (i % 3 == 0) wrong.emplace_back(i, 0u);
+  ASSERT_GT(map.relabel_each(wrong), 100u);
+  const size_t n = map.size();
+  gs::GaussianAdam adam;
+  adam.resize_for(map);
+  auto engine = make_cuda_training_engine();
+  auto cpu = gs::make_cpu_rasteriser(0);
+  const gs::GaussianTrainer::Params p;
+  gs::ReviewSettings rs{};
+  rs.min_depth = p.min_depth;
+  rs.depth_error = p.depth_error;
+  rs.min_contribution = p.min_contribution;
+  rs.relabel_fraction = p.relabel_fraction;
+  rs.budget_decay = p.budget_decay;
+  rs.relabel_keyframes = p.relabel_keyframes;
+  rs.check_visibility = true;
+  rs.check_labels = true;
+  gs::RenderSettings settings;
+  settings.normalise_depth = p.normalise_depth;
+  std::vector<float> use_h(n, std::numeric_limits<float>::infinity());
+  std::vector<uint16_t> inv_h(n, 0);
+  std::vector<uint8_t> votes_h(n, 0);
+  size_t relabelled = 0;
+  for (int k = 0; k < 4; ++k) {
+    const std::string where = "keyframe " + std::to_string(k);
+    const gs::TrainingKeyframe kf = keyframe(truth, k);
+    const SE3 T_cw = kf.T_wc.inverse();
+    gs::ReviewView view;
+    const Eigen::Matrix3d R = T_cw.rotation();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) view.R[r][c] = static_cast<float>(R(r, c));
+      view.t[r] = static_cast<float>(T_cw.translation()[r]);
+    }
+    view.fx = kf.camera.fx, view.fy = kf.camera.fy, view.cx = kf.camera.cx, view.cy = kf.camera.cy;
+    view.width = kf.camera.width, view.height = kf.camera.height;
+    view.depth = kf.depth.data.data();
+    view.labels = kf.labels.data.data();
+    // Host: the probe's colour sums from the CPU rasteriser, then the loop.
+    gs::RenderOutput out;
+    std::unique_ptr<gs::RenderState> state;
+    cpu->forward(map, kf.camera, T_cw, settings, &out, &state);
+    gs::OutputGradients probe;
+    probe.rgb.resize(3 * kf.labels.data.size());
+    for (size_t q = 0; q < kf.labels.data.size(); ++q) {
+      probe.rgb[3 * q] = 1.f;
+      probe.rgb[3 * q + 1] = kf.labels.data[q] == 0 ? 1.f : 0.f;
+      probe.rgb[3 * q + 2] = kf.labels.data[q] != 0 ? 1.f : 0.f;
+    }
+    gs::MapGradients g;
+    cpu->backward(map, kf.camera, T_cw, settings, *state, probe, &g);
+    std::vector<float> use_d = use_h;  // the device starts from the host's counters
+    std::vector<uint16_t> inv_d = inv_h;
+    std::vector<uint8_t> votes_d = votes_h;
+    std::vector<std::pair<uint32_t, uint32_t>> relabels_h, relabels_d;
+    for (size_t i = 0; i < n; ++i) {
+      uint32_t id = 0;
+      if (gs::review_gaussian(view, rs, map.positions().data() + 3 * i, map.object_ids_per_gaussian()[i],
+                              g.colour.data() + 3 * i, &use_h[i], &inv_h[i], &votes_h[i], &id))
+        relabels_h.emplace_back(static_cast<uint32_t>(i), id);
+    }
+    // Device.
+    engine->sync(map, adam);
+    const gs::TrainingView tv{kf.id, &kf.camera, T_cw, &kf.rgb, &kf.depth, &kf.labels};
+    ASSERT_TRUE(engine->review(map, tv, settings, view, rs, use_d.data(), inv_d.data(), votes_d.data(), &relabels_d))
+        << where;
+    size_t off = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const bool same = inv_d[i] == inv_h[i] && votes_d[i] == votes_h[i] &&
+                        (use_d[i] == use_h[i] || std::abs(use_d[i] - use_h[i]) <= 1e-4f * std::abs(use_h[i]) + 1e-6f);
+      off += same ? 0 : 1;
+    }
+    std::vector<std::pair<uint32_t, uint32_t>> only;
+    std::set_symmetric_difference(relabels_h.begin(), relabels_h.end(), relabels_d.begin(), relabels_d.end(),
+                                  std::back_inserter(only));
+    std::printf("%s: %zu of %zu Gaussians' counters differ, relabels host %zu device %zu (%zu not shared)\n",
+                where.c_str(), off, n, relabels_h.size(), relabels_d.size(), only.size());
+    EXPECT_LE(off, n / 500) << where;
+    EXPECT_LE(only.size(), relabels_h.size() / 50 + 2) << where;
+    // On from the host's result, as the trainer goes on (relabelled: votes start over).
+    map.relabel_each(relabels_h);
+    for (const auto& [i, id] : relabels_h) votes_h[i] = 0;
+    relabelled += relabels_h.size();
+  }
+  EXPECT_GT(relabelled, wrong.size() / 2) << "the mislabelled Gaussians were to follow the views";
 }
 
 TEST(CudaTrainingEngine, SettingsItDoesNotCoverStayOnTheHost) {

@@ -10,12 +10,14 @@
 // (lr_opacity = 0): the trainer asks the engine only for batches of that kind.
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "dqo_map/common/image.h"
 #include "dqo_map/gaussians/adam.h"
 #include "dqo_map/gaussians/gaussian_map.h"
 #include "dqo_map/gaussians/losses.h"
+#include "dqo_map/gaussians/math/review.h"
 #include "dqo_map/gaussians/rasteriser.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/geometry/se3.h"
@@ -71,6 +73,20 @@ class TrainingEngine {
   }
   virtual void map_removed(const std::vector<uint8_t>& remove) { (void)remove; }
   virtual void map_replaced() {}
+  // The keyframe review (GaussianTrainer::review_gaussians) where the engine holds `map` (after
+  // sync()): one pass of `view` with settings, its colour gradient under the probe
+  // dL/d(rgb) = (1, [label = 0], [label != 0]) summed per Gaussian, then math/review.h's step for
+  // every Gaussian with `rv`'s pose and intrinsics (its image pointers are the host's and not
+  // read), `rs`, and the trainer's counters [map.size()], updated in place. Returns false where it
+  // does not review (the trainer's own loop then runs); true with `relabels` (index, new ID),
+  // ascending. Throws OutOfDeviceMemory when the device is full (the counters are then as before).
+  virtual bool review(const GaussianMap& map, const TrainingView& view, const RenderSettings& settings,
+                      const ReviewView& rv, const ReviewSettings& rs, float* usefulness, uint16_t* invisible,
+                      uint8_t* votes, std::vector<std::pair<uint32_t, uint32_t>>* relabels) {
+    (void)map, (void)view, (void)settings, (void)rv, (void)rs, (void)usefulness, (void)invisible, (void)votes;
+    (void)relabels;
+    return false;
+  }
   // Writes the optimiser state it holds into *adam (sized for the map); nothing if it holds none.
   virtual void fetch_optimiser_state(GaussianAdam* adam) { (void)adam; }
   // Device bytes held now (the map, optimiser state, gradients, the rasteriser's buffers, cached
