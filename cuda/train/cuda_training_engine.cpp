@@ -18,6 +18,7 @@
 #include "../common/device_buffer.h"
 #include "../raster/raster_pipeline.h"
 #include "dqo_map/gaussians/detail/cpu_rasteriser.h"
+#include "dqo_map/gaussians/removal_plan.h"
 #include "resident_map.h"
 #include "train_cuda.h"
 
@@ -37,7 +38,10 @@ struct CachedView {
 
 class CudaTrainingEngine final : public gs::TrainingEngine {
  public:
-  explicit CudaTrainingEngine(std::shared_ptr<detail::ResidentMap> resident) : resident_(std::move(resident)) {
+  // shared: the backend's rasteriser renders `resident` while it shows the map (the only case where
+  // the trained attributes may stay here: every render of the map then shows them).
+  CudaTrainingEngine(std::shared_ptr<detail::ResidentMap> resident, bool shared)
+      : resident_(std::move(resident)), shared_(shared) {
     const char* env = std::getenv("DQO_CUDA_STAGE_TIMES");
     if (env && *env && std::string(env) != "0") {
       clock_.enable(true);
@@ -61,29 +65,110 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       if (s.view >= views.size()) throw std::invalid_argument("CUDA training engine: a step names no view");
     cache_views(views);
     adam->resize_for(*map);
+    if (rescued_) fetch_attributes(map);  // what a failed removal kept, into the map before it is sent
     try {
       return run_resident(views, steps, loss, map, adam);
     } catch (...) {
-      resident_->invalidate();  // the device's copy may be half-trained: the next batch sends all
+      // The device's copy may be half-trained: the next batch sends all. Deferred attributes
+      // (this batch's steps done so far included) come down first where the device still gives
+      // them; without deferral the map stays as before the batch.
+      if (pending_) {
+        try {
+          resident_->download_trained(map, pipe_.stream());
+          check(cudaStreamSynchronize(pipe_.stream()), "deferred attributes");
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost (%s)\n",
+                       e.what());
+        }
+        pending_ = false;
+      }
+      resident_->invalidate();
       throw;
     }
   }
 
   void map_removed(const std::vector<uint8_t>& remove) override {
     try {
+      if (pending_ && remove.size() != resident_->count())
+        throw std::logic_error("deferred attributes: the removal's mask covers Gaussians not on the device");
       resident_->remove_if(remove, pipe_.stream());
-    } catch (const std::exception&) {
-      resident_->invalidate();  // the next batch sends the host's map
+    } catch (const std::exception& e) {
+      // The next batch sends the host's map. Deferred attributes come down first, with the same
+      // removal applied, where the device still holds them as they were (remove_if failed before
+      // changing anything); fetch_attributes() writes them.
+      if (pending_ && resident_->valid() && remove.size() == resident_->count()) {
+        try {
+          detail::ResidentMap::Trained t = resident_->download_trained(pipe_.stream());
+          const gs::RemovalPlan plan = gs::plan_removal(remove);
+          gs::apply_removal(&t.position, 3, plan);
+          gs::apply_removal(&t.log_scale, 3, plan);
+          gs::apply_removal(&t.rotation, 4, plan);
+          gs::apply_removal(&t.colour, 3, plan);
+          gs::apply_removal(&t.confidence, 1, plan);
+          rescued_ = std::make_unique<detail::ResidentMap::Trained>(std::move(t));
+        } catch (const std::exception& e2) {
+          std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost (%s)\n",
+                       e2.what());
+        }
+      } else if (pending_) {
+        std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost (%s)\n",
+                     e.what());
+      }
+      pending_ = false;
+      resident_->invalidate();
     }
   }
-  void map_replaced() override { resident_->invalidate(); }
+  void map_replaced() override {
+    resident_->invalidate();
+    pending_ = false;
+    rescued_.reset();
+  }
   void sync(const gs::GaussianMap& map, const gs::GaussianAdam& adam) override {
     if (adam.size() != map.size()) return;
     try {
       resident_->sync_up(map, adam, pipe_.stream());
     } catch (const std::exception&) {
-      resident_->invalidate();  // the next batch sends everything
+      // Out of memory leaves what is held valid (sync_up allocates first): the caller fetches
+      // deferred attributes from it (holds() is false). Only a failing device loses the copy.
+      if (!resident_->valid() && pending_) {
+        std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost\n");
+        pending_ = false;
+      }
     }
+  }
+  bool defer_attributes(bool on) override {
+    defer_ = on && shared_;
+    return defer_;
+  }
+  void fetch_attributes(gs::GaussianMap* map) override {
+    if (rescued_) {
+      const detail::ResidentMap::Trained& t = *rescued_;
+      const size_t n = t.confidence.size();
+      if (map->size() < n) throw std::logic_error("CUDA training engine: the map is smaller than the rescued one");
+      std::copy(t.position.begin(), t.position.end(), map->positions().begin());
+      std::copy(t.log_scale.begin(), t.log_scale.end(), map->log_scales().begin());
+      std::copy(t.rotation.begin(), t.rotation.end(), map->rotations().begin());
+      std::copy(t.colour.begin(), t.colour.end(), map->colours().begin());
+      std::copy(t.confidence.begin(), t.confidence.end(), map->confidences().begin());
+      rescued_.reset();
+      return;
+    }
+    if (!pending_) return;
+    resident_->download_trained(map, pipe_.stream());
+    check(cudaStreamSynchronize(pipe_.stream()), "deferred attributes");
+    pending_ = false;
+  }
+  bool holds(const gs::GaussianMap& map) const override { return resident_->shows(map); }
+  bool flag_oversized(const gs::GaussianMap& map, float max_log_scale, std::vector<uint8_t>* flags) override {
+    if (!resident_->shows(map)) return false;
+    const size_t n = map.size();
+    flags->resize(n);
+    if (n == 0) return true;
+    uint8_t* d = flag_bytes_.ensure(n, "oversized flags");
+    resident_->flag_oversized(max_log_scale, d, pipe_.stream());
+    check(cudaMemcpyAsync(flags->data(), d, n, cudaMemcpyDeviceToHost, pipe_.stream()), "oversized flags");
+    check(cudaStreamSynchronize(pipe_.stream()), "oversized flags");
+    return true;
   }
   bool review(const gs::GaussianMap& map, const gs::TrainingView& view, const gs::RenderSettings& settings,
               const gs::ReviewView& rv, const gs::ReviewSettings& rs, float* usefulness, uint16_t* invisible,
@@ -226,7 +311,11 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     // attributes and the loss sums down (the optimiser state stays).
     std::vector<double> host_sums;
     check(cudaStreamSynchronize(stream), "training batch");
-    resident_->download_trained(map, stream);
+    if (defer_) {
+      pending_ = true;  // the map's attributes stay on the device until fetch_attributes()
+    } else {
+      resident_->download_trained(map, stream);
+    }
     download(&host_sums, sums, 3 * steps.size(), stream);
     clock_.end(detail::Stage::kDownload, stream);
     check(cudaStreamSynchronize(stream), "training batch");
@@ -294,6 +383,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   std::map<uint64_t, std::unique_ptr<CachedView>> cache_;
   std::vector<std::unique_ptr<CachedView>> spare_;  // buffers of views gone from the window
   std::shared_ptr<detail::ResidentMap> resident_;  // shared with the backend's rasteriser
+  const bool shared_;
   detail::GradientBuffers gradients_;
   DeviceBuffer<float> v_rgb_, v_depth_, v_ins_;
   DeviceBuffer<uint8_t> rgb8_;  // a view's 8-bit colours on their way up (stream-ordered reuse)
@@ -304,19 +394,25 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   DeviceBuffer<uint16_t> review_invisible_;
   DeviceBuffer<uint8_t> review_votes_;
   DeviceBuffer<uint2> review_relabels_;
+  DeviceBuffer<uint8_t> flag_bytes_;  // flag_oversized()'s
+  // Deferred attributes (defer_attributes()): asked for; the device's newer than the host map's;
+  // what a failed removal brought down for fetch_attributes().
+  bool defer_ = false;
+  bool pending_ = false;
+  std::unique_ptr<detail::ResidentMap::Trained> rescued_;
 };
 
 }  // namespace
 
 std::unique_ptr<gs::TrainingEngine> make_cuda_training_engine() {
   require_device();
-  return std::make_unique<CudaTrainingEngine>(std::make_shared<detail::ResidentMap>());
+  return std::make_unique<CudaTrainingEngine>(std::make_shared<detail::ResidentMap>(), false);
 }
 
 namespace detail {
 std::unique_ptr<gs::TrainingEngine> make_cuda_training_engine_sharing(std::shared_ptr<ResidentMap> resident) {
   require_device();
-  return std::make_unique<CudaTrainingEngine>(std::move(resident));
+  return std::make_unique<CudaTrainingEngine>(std::move(resident), true);
 }
 }  // namespace detail
 

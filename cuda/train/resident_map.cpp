@@ -41,8 +41,24 @@ void ResidentMap::sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& ad
   if (!valid_ || n < count_) invalidate();
   const size_t from = count_;
   const gs::GaussianAdam::State& st = adam.state();
-  // Until every array holds n, nothing is resident: a failure half-way leaves the next call to
-  // send everything.
+  // Room for n in every array first (each keeps what it holds): running out of device memory
+  // here leaves the held Gaussians as they were, still valid (the caller's trained attributes
+  // may live only there: TrainingEngine::defer_attributes).
+  for (GrowingBuffer<float>* b : {&position_, &log_scale_, &colour_}) b->reserve(3 * n, 3 * from, "map", stream);
+  rotation_.reserve(4 * n, 4 * from, "map", stream);
+  confidence_.reserve(n, from, "map", stream);
+  opacity_.reserve(n, from, "map", stream);
+  type_.reserve(n, from, "map", stream);
+  const size_t widths[4] = {3, 3, 4, 3};
+  for (int a = 0; a < 4; ++a) {
+    m_[a].reserve(widths[a] * n, widths[a] * from, "Adam moments", stream);
+    v_[a].reserve(widths[a] * n, widths[a] * from, "Adam moments", stream);
+  }
+  steps_.reserve(n, from, "Adam steps", stream);
+  stable_.reserve(n, from, "stable flags", stream);
+  object_id_.reserve(n, from, "object IDs", stream);
+  // Until every array holds n, nothing is resident: a copy failing half-way (the device itself
+  // failing) leaves the next call to send everything.
   valid_ = false;
   send_tail(&position_, map.positions(), from, n, 3, "positions", stream);
   send_tail(&log_scale_, map.log_scales(), from, n, 3, "log-scales", stream);
@@ -98,13 +114,14 @@ void ResidentMap::remove_if(const std::vector<uint8_t>& remove, cudaStream_t str
   while (moves < plan.sources.size() && plan.sources[moves] < n) ++moves;
   const size_t kept = std::min(moves < plan.holes.size() ? size_t{plan.holes[moves]} : plan.kept, n);
   if (plan.kept == remove.size()) return;  // nothing removed
+  // The plan's buffers before any change: running out of memory here leaves what is held intact.
+  uint32_t* holes = holes_.ensure(moves, "removal plan");
+  uint32_t* sources = sources_.ensure(moves, "removal plan");
   valid_ = false;  // until compacted
   synced_map_ = nullptr;  // in step again with the next sync_up()
   stream_ = stream;
   // The plan up (copies from pageable memory: the host vectors may go when the calls return),
   // then each array's holes filled in place.
-  uint32_t* holes = holes_.ensure(moves, "removal plan");
-  uint32_t* sources = sources_.ensure(moves, "removal plan");
   if (moves > 0) {
     check(cudaMemcpyAsync(holes, plan.holes.data(), moves * sizeof(uint32_t), cudaMemcpyHostToDevice, stream),
           "removal plan");
@@ -140,12 +157,36 @@ void ResidentMap::remove_if(const std::vector<uint8_t>& remove, cudaStream_t str
 
 void ResidentMap::download_trained(gs::GaussianMap* map, cudaStream_t stream) const {
   const size_t n = count_;
-  if (!valid_ || map->size() != n) throw std::logic_error("resident map: the host map is not the one held");
-  fetch(&map->positions(), position_.get(), 3 * n, stream);
-  fetch(&map->log_scales(), log_scale_.get(), 3 * n, stream);
-  fetch(&map->rotations(), rotation_.get(), 4 * n, stream);
-  fetch(&map->colours(), colour_.get(), 3 * n, stream);
-  fetch(&map->confidences(), confidence_.get(), n, stream);
+  if (!valid_ || map->size() < n) throw std::logic_error("resident map: the host map is not the one held");
+  // Into the first n (the host may have appended since; those keep the host's values).
+  auto into = [&](std::vector<float>* host, const float* device, size_t width) {
+    if (host->size() != width * map->size()) throw std::logic_error("resident map: a host array is not sized for its map");
+    if (n) check(cudaMemcpyAsync(host->data(), device, width * n * sizeof(float), cudaMemcpyDeviceToHost, stream),
+                 "resident map");
+  };
+  into(&map->positions(), position_.get(), 3);
+  into(&map->log_scales(), log_scale_.get(), 3);
+  into(&map->rotations(), rotation_.get(), 4);
+  into(&map->colours(), colour_.get(), 3);
+  into(&map->confidences(), confidence_.get(), 1);
+}
+
+ResidentMap::Trained ResidentMap::download_trained(cudaStream_t stream) const {
+  Trained t;
+  const size_t n = valid_ ? count_ : 0;
+  fetch(&t.position, position_.get(), 3 * n, stream);
+  fetch(&t.log_scale, log_scale_.get(), 3 * n, stream);
+  fetch(&t.rotation, rotation_.get(), 4 * n, stream);
+  fetch(&t.colour, colour_.get(), 3 * n, stream);
+  fetch(&t.confidence, confidence_.get(), n, stream);
+  check(cudaStreamSynchronize(stream), "resident map");
+  return t;
+}
+
+void ResidentMap::flag_oversized(float max_log_scale, uint8_t* flags, cudaStream_t stream) const {
+  if (!valid_) throw std::logic_error("resident map: nothing held");
+  launch_flag_oversized(count_, log_scale_.get(), max_log_scale, flags, stream);
+  check(cudaGetLastError(), "oversized flags");
 }
 
 void ResidentMap::download_optimiser(gs::GaussianAdam* adam, cudaStream_t stream) const {

@@ -75,9 +75,18 @@ class ResidentMap {
   // a reader on another stream.
   void wait() const;
 
-  // The trained attributes into `map` (of count() Gaussians); asynchronous: the caller waits on
-  // the stream before reading them.
+  // The trained attributes of the count() Gaussians held into the first count() of `map` (those
+  // appended since keep theirs); asynchronous: the caller waits on the stream before reading them.
   void download_trained(gs::GaussianMap* map, cudaStream_t stream) const;
+  // The same into arrays of their own (waits for the stream): what a caller about to lose the
+  // device's copy keeps.
+  struct Trained {
+    std::vector<float> position, log_scale, rotation, colour, confidence;
+  };
+  Trained download_trained(cudaStream_t stream) const;
+  // flags[i] = 1 where the held Gaussian i's largest log-scale exceeds max_log_scale, else 0
+  // (flags: count() bytes on the device; asynchronous).
+  void flag_oversized(float max_log_scale, uint8_t* flags, cudaStream_t stream) const;
   // The optimiser state of the count() Gaussians held into the first count() of `adam` (sized for
   // at least as many; those appended since keep theirs); asynchronous likewise.
   void download_optimiser(gs::GaussianAdam* adam, cudaStream_t stream) const;

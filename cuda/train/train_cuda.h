@@ -74,6 +74,10 @@ void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const 
 void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint8_t* a,
                        cudaStream_t stream);
 
+// The pruning's size test (train_prune.cu): flags[i] = gs::oversized(log_scale + 3i, max_log_scale).
+void launch_flag_oversized(size_t n, const float* log_scale, float max_log_scale, uint8_t* flags,
+                           cudaStream_t stream);
+
 // The keyframe review on the device (train_review.cu). The probe's output gradient per pixel:
 // v_rgb = (1, [label = 0], [label != 0]).
 void launch_review_probe(size_t pixels, const uint32_t* labels, float* v_rgb, cudaStream_t stream);

@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "compaction.h"
+#include "dqo_map/gaussians/math/prune.h"
 #include "dqo_map/gaussians/math/review.h"
 #include "parallel.h"
 
@@ -65,6 +66,21 @@ void GaussianTrainer::sync_engine() {
   if (!uses_engine() || map_.empty()) return;
   sync_state();
   engine_->sync(map_, adam_);
+  // A render of a map the engine does not hold (it could not take the appended Gaussians: out of
+  // memory) sends the host's: deferred attributes come down first.
+  if (attributes_on_device_ && !engine_->holds(map_)) fetch_attributes();
+}
+
+const GaussianMap& GaussianTrainer::map() const {
+  fetch_attributes();
+  return map_;
+}
+
+void GaussianTrainer::fetch_attributes() const {
+  if (!attributes_on_device_) return;
+  // map_ is not a const object: only this trainer's const view of it is.
+  engine_->fetch_attributes(const_cast<GaussianMap*>(&map_));
+  attributes_on_device_ = false;
 }
 
 void GaussianTrainer::sync_state() {
@@ -163,6 +179,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   // Stabilise (off by default: no pass over the map then).
   auto& stable = map_.stable();
   if (params_.stable_confidence > 0.f) {
+    fetch_attributes();
     const auto& confidence = map_.confidences();
     for (size_t i = 0; i < map_.size(); ++i) {
       if (!stable[i] && confidence[i] >= params_.stable_confidence) {
@@ -261,6 +278,10 @@ std::vector<double> GaussianTrainer::iterate_on_engine(int iterations) {
   loss.settings = settings(0, false);
   loss.lambda_depth = params_.lambda_depth;
   loss.lambda_ins = params_.lambda_ins;
+  // The trained attributes stay on the engine's device until the host reads them (map(), the
+  // host's own loops): the mapper reads them only for a save, a service or a publish. Flagged
+  // before the run: a failed batch may leave some there too (fetch_attributes() is then cheap).
+  if (engine_->defer_attributes(true)) attributes_on_device_ = true;
   return engine_->run(views, steps, loss, &map_, &adam_);
 }
 
@@ -321,6 +342,7 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
       return;
     }
   }
+  fetch_attributes();  // the host's pass and loop read the map's values
   const size_t n_pixels = kf.labels.data.size();
   OutputGradients& probe = scratch_.probe;
   probe.rgb.resize(3 * n_pixels);
@@ -639,7 +661,17 @@ void GaussianTrainer::prune(KeyframeReport* report) {
   const float max_log_scale = std::log(params_.max_scale);
   const auto& stable = map_.stable();
   const auto& birth = map_.birth_keyframes();
-  const auto& log_scale = map_.log_scales();
+  // The size test on the values the engine holds where it holds them (1 byte a Gaussian down),
+  // else on the host's.
+  std::vector<uint8_t> too_large;
+  if (!(uses_engine() && engine_->flag_oversized(map_, max_log_scale, &too_large))) {
+    fetch_attributes();
+    const auto& log_scale = map_.log_scales();
+    too_large.resize(n);
+    detail::parallel_for_chunks(detail::resolve_threads(0), n, [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) too_large[i] = oversized(log_scale.data() + 3 * i, max_log_scale) ? 1 : 0;
+    });
+  }
   std::vector<uint8_t> remove(n, 0);
   // Each Gaussian on its own, over threads (a million take a few ms on one core); the counts
   // summed per chunk.
@@ -647,12 +679,11 @@ void GaussianTrainer::prune(KeyframeReport* report) {
   detail::parallel_for_chunks(detail::resolve_threads(0), n, [&](size_t begin, size_t end) {
     size_t n_stale = 0, n_oversized = 0, n_invisible = 0;
     for (size_t i = begin; i < end; ++i) {
-      const float s = std::max({log_scale[3 * i], log_scale[3 * i + 1], log_scale[3 * i + 2]});
       if (params_.max_unstable_age > 0 && !stable[i] &&
           now - birth[i] > static_cast<uint32_t>(params_.max_unstable_age)) {
         remove[i] = 1;
         ++n_stale;
-      } else if (s > max_log_scale) {
+      } else if (too_large[i]) {
         remove[i] = 1;
         ++n_oversized;
       } else if (params_.max_invisible_keyframes > 0 &&
@@ -716,6 +747,9 @@ size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
   const size_t removed =
       static_cast<size_t>(std::count_if(remove.begin(), remove.end(), [](uint8_t r) { return r != 0; }));
   if (removed == 0) return 0;
+  // Deferred attributes: the engine holds every Gaussian first (the appended ones sent), so that
+  // its removal runs in full there and keeps what it trained.
+  if (attributes_on_device_ && !engine_->holds(map_)) sync_engine();
   // The map's arrays, the optimiser's step counts, the trainer's own and the engine's copy at
   // once, each by the same plan (removal_plan.h: a pass over the mask, then as many moves as
   // removals).
@@ -768,6 +802,7 @@ size_t GaussianTrainer::relabel(uint32_t from, uint32_t to) {
 
 void GaussianTrainer::set_map(GaussianMap map) {
   map_ = std::move(map);
+  attributes_on_device_ = false;
   if (engine_) engine_->map_replaced();
   adam_.reset();
   invisible_count_.assign(map_.size(), 0);

@@ -343,7 +343,7 @@ std::optional<MappingReport> GaussianMapper::process_next() {
   std::sort(seen.begin(), seen.end());
   keyframe_objects_[pose.id] = std::move(seen);
 
-  const gs::GaussianMap& map = trainer_->map();
+  const gs::GaussianMap& map = trainer_->structure();  // counts: no copy of the attributes
   report.num_gaussians = map.size();
   report.bytes = map.bytes_used();
   const std::map<uint32_t, size_t> counts = map.counts_by_object();
@@ -360,7 +360,7 @@ std::vector<ObjectSummary> GaussianMapper::list_objects() const {
     out[id].object = o;
     out[id].known = true;
   }
-  for (const auto& [id, count] : trainer_->map().counts_by_object()) {
+  for (const auto& [id, count] : trainer_->structure().counts_by_object()) {
     if (id == 0) continue;
     ObjectSummary& s = out[id];
     s.object.id = id;

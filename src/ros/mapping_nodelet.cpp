@@ -386,7 +386,7 @@ void MappingNodelet::on_map_id(const std_msgs::String::ConstPtr& msg) {
   const std::string kept = (fs::path(p_.output_dir) / ("map_" + old_id + ".dqomap")).string();
   std::string error;
   const auto w = worker();
-  const size_t had = w ? w->with_mapper([](GaussianMapper& m) { return m.map().size(); }) : 0;
+  const size_t had = w ? w->with_mapper([](GaussianMapper& m) { return m.map_structure().size(); }) : 0;
   if (had > 0 && dqo::resolve_output_path(p_.output_dir, "map_" + old_id + ".dqomap", &error) &&
       save_to(kept, &error)) {
     NODELET_WARN("mapping: new map '%s' (was '%s'): the old map's %zu Gaussians are kept in %s; starting empty",
@@ -477,9 +477,9 @@ void MappingNodelet::publish_diagnostics() {
   w->with_mapper([&](GaussianMapper& m) {
     waiting = m.waiting();
     ready = m.ready();
-    gaussians = m.map().size();
+    gaussians = m.map_structure().size();
     objects = m.list_objects().size();
-    bytes = m.map().bytes_used();
+    bytes = m.map_structure().bytes_used();
   });
   const size_t inbox = w->inbox_size();
   double mean_ms = 0.0, max_ms = 0.0;

@@ -76,8 +76,8 @@ std::string timings_json(const OfflineResult& run, const mapping::GaussianMapper
     << ", \"keyframes\": " << run.keyframes << ", \"dropped_keyframes\": " << mapper.dropped()
     << ",\n  \"total_s\": " << seconds << ", \"frames_per_second\": "
     << (seconds > 0 ? run.frames / seconds : 0.0) << ", \"mesh_s\": " << mesh_seconds
-    << ",\n  \"peak_memory_mb\": " << peak_memory_mb() << ", \"gaussians\": " << mapper.map().size()
-    << ", \"map_mb\": " << mapper.map().bytes_used() / 1e6 << ", \"mean_final_loss\": " << mean_final_loss(run)
+    << ",\n  \"peak_memory_mb\": " << peak_memory_mb() << ", \"gaussians\": " << mapper.map_structure().size()
+    << ", \"map_mb\": " << mapper.map_structure().bytes_used() / 1e6 << ", \"mean_final_loss\": " << mean_final_loss(run)
     << ",\n  \"stages\": {\n    \"read\": " << stage_json(run.timings.read_ms)
     << ",\n    \"pose\": " << stage_json(run.timings.pose_ms)
     << ",\n    \"objects\": " << stage_json(run.timings.objects_ms)

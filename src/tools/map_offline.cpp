@@ -565,7 +565,7 @@ int main(int argc, char** argv) {
     return fail(error);
   }
   const double seconds = run.seconds;
-  const size_t gaussians = mapper->map().size();
+  const size_t gaussians = mapper->map_structure().size();
 
   std::printf("%d frames, %d keyframes in %.1f s (%.2f frames/s, %.0f ms per keyframe mapping); %zu Gaussians "
               "(%.1f MB), peak memory %.0f MB\n",
@@ -576,7 +576,7 @@ int main(int argc, char** argv) {
                                                  for (double m : run.timings.mapping_ms) s += m;
                                                  return s / run.timings.mapping_ms.size();
                                                }(),
-              gaussians, mapper->map().bytes_used() / 1e6, dqo::system::peak_memory_mb());
+              gaussians, mapper->map_structure().bytes_used() / 1e6, dqo::system::peak_memory_mb());
   std::printf("mapping: %.2f ms per input frame amortised, mean final training loss %.5f\n",
               run.frames > 0 ? [&] {
                 double s = 0;

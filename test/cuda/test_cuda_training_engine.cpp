@@ -18,9 +18,11 @@
 
 #include "../gaussians/raster_test_util.h"
 #include "keyframe_test_util.h"
+#include "dqo_map/cuda/cuda_backend.h"
 #include "dqo_map/cuda/cuda_rasteriser.h"
 #include "dqo_map/cuda/cuda_training_engine.h"
 #include "dqo_map/cuda/device_info.h"
+#include "dqo_map/gaussians/math/prune.h"
 #include "dqo_map/gaussians/math/review.h"
 #include "dqo_map/gaussians/trainer.h"
 
@@ -225,7 +227,7 @@ TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
   std::vector<float> use_h(n, std::numeric_limits<float>::infinity());
   std::vector<uint16_t> inv_h(n, 0);
   std::vector<uint8_t> votes_h(n, 0);
-  size_t relabelled = 0;
+  size_t relabelled = 0, fixed = 0;
   for (int k = 0; k < 4; ++k) {
     const std::string where = "keyframe " + std::to_string(k);
     const gs::TrainingKeyframe kf = keyframe(truth, k);
@@ -282,11 +284,112 @@ TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
     EXPECT_LE(off, n / 500) << where;
     EXPECT_LE(only.size(), relabels_h.size() / 50 + 2) << where;
     // On from the host's result, as the trainer goes on (relabelled: votes start over).
+    for (const auto& [i, id] : relabels_h) {
+      fixed += id == 1 && std::binary_search(wrong.begin(), wrong.end(), std::make_pair(i, 0u)) ? 1 : 0;
+      votes_h[i] = 0;
+    }
     map.relabel_each(relabels_h);
-    for (const auto& [i, id] : relabels_h) votes_h[i] = 0;
     relabelled += relabels_h.size();
   }
-  EXPECT_GT(relabelled, wrong.size() / 2) << "the mislabelled Gaussians were to follow the views";
+  // Relabels happened (a Gaussian needs relabel_keyframes views in a row voting for the same
+  // label: those the first keyframes see), and most put a mislabelled Gaussian back.
+  std::printf("relabelled %zu, of which %zu of the %zu mislabelled back to object 1\n", relabelled, fixed, wrong.size());
+  EXPECT_GE(fixed, 50u) << "the mislabelled Gaussians were to follow the views";
+  EXPECT_GE(fixed, relabelled * 9 / 10);
+}
+
+// The backend's engine keeps what it trains on the device (TrainingEngine::defer_attributes) until
+// fetched: a batch leaves the host map as it was; a removal and appends between batches keep what
+// was trained (the device removes by the host's plan); fetch_attributes() then gives what an
+// engine that writes back after every batch gives (to the order of float atomics), the Gaussians
+// appended since the last batch keep the host's values, and the pruning's size test on the device
+// is the host's on the fetched values, to the bit. A lone engine does not defer.
+TEST(CudaTrainingEngine, DeferredAttributesComeDownWhenFetched) {
+  if (!gpu_available()) GTEST_SKIP() << "no GPU";
+  const gs::GaussianMap truth = truth_map(11);
+  gs::GaussianMap start = truth;
+  std::mt19937_64 rng(12);
+  for (float& x : start.positions()) x += static_cast<float>(uniform(rng, -0.02, 0.02));
+  for (float& c : start.colours()) c = std::clamp(c + static_cast<float>(uniform(rng, -0.1, 0.1)), 0.f, 1.f);
+  CudaBackend backend = make_cuda_backend();
+  auto eager = make_cuda_training_engine();
+  EXPECT_FALSE(eager->defer_attributes(true)) << "a lone engine: renders of its map do not show its copy";
+  ASSERT_TRUE(backend.engine->defer_attributes(true));
+  const gs::GaussianTrainer::Params p;
+  std::vector<gs::TrainingKeyframe> kfs;
+  for (int k = 0; k < 3; ++k) kfs.push_back(keyframe(truth, k));
+  std::vector<gs::TrainingView> views;
+  for (const auto& kf : kfs)
+    views.push_back(gs::TrainingView{kf.id, &kf.camera, kf.T_wc.inverse(), &kf.rgb, &kf.depth, &kf.labels});
+  std::vector<gs::TrainingStep> steps;
+  for (uint32_t k = 0; k < 12; ++k) steps.push_back(gs::TrainingStep{k % 3, k % 4});
+  gs::TrainingLoss loss;
+  loss.settings.normalise_depth = p.normalise_depth;
+  loss.lambda_depth = p.lambda_depth;
+  loss.lambda_ins = p.lambda_ins;
+  gs::GaussianMap md = start, me = start;
+  gs::GaussianAdam ad(p.adam), ae(p.adam);
+  backend.engine->run(views, steps, loss, &md, &ad);
+  eager->run(views, steps, loss, &me, &ae);
+  EXPECT_EQ(md.positions(), start.positions()) << "the batch left the host map as it was";
+  EXPECT_NE(me.positions(), start.positions()) << "the eager engine wrote back";
+  // Between batches: every fifth Gaussian removed, 50 appended; a second batch; 20 more appended.
+  std::vector<uint8_t> remove(md.size(), 0);
+  for (size_t i = 0; i < remove.size(); i += 5) remove[i] = 1;
+  auto append = [&](int count, uint64_t seed) {
+    std::mt19937_64 r(seed);
+    for (int i = 0; i < count; ++i) {
+      gs::GaussianInit g;
+      g.position = Eigen::Vector3f(uniform(r, -1, 1), uniform(r, -1, 1), uniform(r, 2, 3));
+      g.colour = Eigen::Vector3f(0.5f, 0.4f, 0.3f);
+      g.log_scale = Eigen::Vector3f::Constant(-3.f);
+      g.rotation = Eigen::Vector4f(1, 0, 0, 0);
+      md.add(g);
+      me.add(g);
+    }
+  };
+  md.remove_if(remove);
+  backend.engine->map_removed(remove);
+  me.remove_if(remove);
+  eager->map_removed(remove);
+  append(50, 13);
+  backend.engine->run(views, steps, loss, &md, &ad);
+  eager->run(views, steps, loss, &me, &ae);
+  append(20, 14);
+  const gs::GaussianMap before_fetch = md;
+  backend.engine->fetch_attributes(&md);
+  const size_t n = md.size();
+  ASSERT_EQ(n, me.size());
+  const double e_pos = relative_l2(md.positions(), me.positions()), e_col = relative_l2(md.colours(), me.colours());
+  const double e_scale = relative_l2(md.log_scales(), me.log_scales()), e_rot = relative_l2(md.rotations(), me.rotations());
+  std::printf("deferred against eager: relative L2 positions %.2e, colours %.2e, log-scales %.2e, rotations %.2e\n",
+              e_pos, e_col, e_scale, e_rot);
+  EXPECT_LE(e_pos, 1e-5);
+  EXPECT_LE(e_col, 1e-3);
+  EXPECT_LE(e_scale, 1e-3);
+  EXPECT_LE(e_rot, 1e-3);
+  EXPECT_EQ(md.confidences(), me.confidences()) << "the same Gaussians stepped as often";
+  EXPECT_GT(relative_l2(before_fetch.positions(), me.positions()), 10 * e_pos) << "the fetch brought the training";
+  for (size_t i = n - 20; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(md.positions()[3 * i + k], before_fetch.positions()[3 * i + k]) << i;
+  }
+  // The size test on the device, on the held values (the last 20 sent first).
+  ad.resize_for(md);
+  backend.engine->sync(md, ad);
+  ASSERT_TRUE(backend.engine->holds(md));
+  const float max_log_scale = std::log(0.045f);
+  std::vector<uint8_t> flags;
+  ASSERT_TRUE(backend.engine->flag_oversized(md, max_log_scale, &flags));
+  ASSERT_EQ(flags.size(), n);
+  size_t flagged = 0, differ = 0;
+  for (size_t i = 0; i < n; ++i) {
+    flagged += flags[i];
+    differ += flags[i] != (gs::oversized(md.log_scales().data() + 3 * i, max_log_scale) ? 1 : 0);
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(flagged, 0u);
+  EXPECT_LT(flagged, n);
+  EXPECT_FALSE(eager->flag_oversized(md, max_log_scale, &flags)) << "it does not hold this map";
 }
 
 TEST(CudaTrainingEngine, SettingsItDoesNotCoverStayOnTheHost) {

@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "dqo_map/gaussians/math/prune.h"
+#include "dqo_map/gaussians/removal_plan.h"
 #include "dqo_map/gaussians/render_metrics.h"
 #include "dqo_map/gaussians/trainer.h"
 #include "dqo_map/sim/renderer.h"
@@ -348,6 +350,174 @@ TEST(Trainer, BudgetKeepsTheMostUsefulGaussians) {
               objects_flat, psnr_weighted / frames.size(), objects_weighted);
   EXPECT_GT(psnr_flat / frames.size(), psnr_free / frames.size() - 2.0);
   EXPECT_GT(psnr_weighted / frames.size(), psnr_free / frames.size() - 2.0);
+}
+
+// A CPU stand-in for a backend whose engine keeps the trained attributes on its "device"
+// (TrainingEngine::defer_attributes) and whose rasteriser renders that copy while the engine holds
+// the map, as the CUDA backend's pair does. Its training moves every Gaussian a fixed way a step
+// (x + 1e-3, every 7th's first log-scale + 0.25, confidence + 1): deterministic, so a trainer that
+// defers and one that does not must end with the same map to the bit, prunings of the grown ones
+// (on the held values: flag_oversized) and removals between fetches included.
+struct Shadow {
+  bool defer_ok = false;  // the engine defers when asked
+  bool deferring = false, pending = false, valid = false;
+  size_t count = 0;
+  const GaussianMap* synced = nullptr;
+  uint64_t revision = 0;
+  std::vector<float> attr[5];  // position, log-scale, rotation, colour, confidence
+  int fetches = 0, removals_pending = 0;
+
+  static std::vector<float>* host(GaussianMap* m, int a) {
+    std::vector<float>* h[5] = {&m->positions(), &m->log_scales(), &m->rotations(), &m->colours(), &m->confidences()};
+    return h[a];
+  }
+  static size_t width(int a) { return a == 2 ? 4 : a == 4 ? 1 : 3; }
+  bool holds(const GaussianMap& m) const {
+    return valid && synced == &m && revision == m.revision() && count == m.size();
+  }
+  void sync(const GaussianMap& m) {
+    if (!valid || m.size() < count) valid = false, count = 0;
+    for (int a = 0; a < 5; ++a) {
+      const std::vector<float>& h = *host(const_cast<GaussianMap*>(&m), a);
+      attr[a].resize(count * width(a));
+      attr[a].insert(attr[a].end(), h.begin() + count * width(a), h.end());
+    }
+    count = m.size(), valid = true, synced = &m, revision = m.revision();
+  }
+  void fetch(GaussianMap* m) {
+    if (!pending) return;
+    for (int a = 0; a < 5; ++a) std::copy(attr[a].begin(), attr[a].end(), host(m, a)->begin());
+    pending = false;
+    ++fetches;
+  }
+  // The map as the engine holds it: `m` with the held attributes.
+  GaussianMap as_held(const GaussianMap& m) const {
+    GaussianMap copy = m;
+    for (int a = 0; a < 5; ++a) std::copy(attr[a].begin(), attr[a].end(), host(&copy, a)->begin());
+    return copy;
+  }
+};
+
+class ShadowEngine final : public TrainingEngine {
+ public:
+  explicit ShadowEngine(std::shared_ptr<Shadow> s) : s_(std::move(s)) {}
+  std::vector<double> run(const std::vector<TrainingView>&, const std::vector<TrainingStep>& steps,
+                          const TrainingLoss&, GaussianMap* map, GaussianAdam* adam) override {
+    adam->resize_for(*map);
+    s_->sync(*map);
+    for (size_t k = 0; k < steps.size(); ++k) {
+      for (size_t i = 0; i < s_->count; ++i) {
+        s_->attr[0][3 * i] += 1e-3f;
+        if (i % 7 == 0) s_->attr[1][3 * i] += 0.25f;
+        s_->attr[4][i] += 1.f;
+      }
+    }
+    if (s_->deferring) {
+      s_->pending = true;
+    } else {
+      s_->pending = true;
+      s_->fetch(map);
+      --s_->fetches;
+    }
+    return std::vector<double>(steps.size(), 0.0);
+  }
+  void sync(const GaussianMap& map, const GaussianAdam&) override { s_->sync(map); }
+  void map_removed(const std::vector<uint8_t>& remove) override {
+    if (!s_->valid) return;
+    if (remove.size() != s_->count) {  // the trainer syncs first while attributes are deferred
+      EXPECT_FALSE(s_->pending) << "a removal over Gaussians the engine does not hold, its attributes deferred";
+      s_->valid = false;
+      return;
+    }
+    s_->removals_pending += s_->pending ? 1 : 0;
+    const RemovalPlan plan = plan_removal(remove);
+    for (int a = 0; a < 5; ++a) apply_removal(&s_->attr[a], Shadow::width(a), plan);
+    s_->count = plan.kept;
+    s_->synced = nullptr;
+  }
+  void map_replaced() override { s_->valid = false, s_->pending = false; }
+  bool defer_attributes(bool on) override { return s_->deferring = on && s_->defer_ok; }
+  void fetch_attributes(GaussianMap* map) override { s_->fetch(map); }
+  bool holds(const GaussianMap& map) const override { return s_->holds(map); }
+  bool flag_oversized(const GaussianMap& map, float max_log_scale, std::vector<uint8_t>* flags) override {
+    if (!s_->holds(map)) return false;
+    flags->resize(s_->count);
+    for (size_t i = 0; i < s_->count; ++i) (*flags)[i] = oversized(&s_->attr[1][3 * i], max_log_scale);
+    return true;
+  }
+  size_t device_bytes() const override { return 0; }
+
+ private:
+  std::shared_ptr<Shadow> s_;
+};
+
+class ShadowRasteriser final : public Rasteriser {
+ public:
+  explicit ShadowRasteriser(std::shared_ptr<Shadow> s) : s_(std::move(s)), cpu_(make_cpu_rasteriser(2)) {}
+  void forward(const GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw, const RenderSettings& settings,
+               RenderOutput* out, std::unique_ptr<RenderState>* state) override {
+    if (s_->holds(map)) {
+      cpu_->forward(s_->as_held(map), camera, T_cw, settings, out, state);
+    } else {
+      cpu_->forward(map, camera, T_cw, settings, out, state);
+    }
+  }
+  void backward(const GaussianMap& map, const PinholeCamera& camera, const SE3& T_cw, const RenderSettings& settings,
+                const RenderState& state, const OutputGradients& grad_out, MapGradients* grad_map) override {
+    // The trainer's review reads the map's values after its backward: they are fetched first.
+    EXPECT_FALSE(s_->pending) << "a backward pass over deferred attributes";
+    cpu_->backward(map, camera, T_cw, settings, state, grad_out, grad_map);
+  }
+
+ private:
+  std::shared_ptr<Shadow> s_;
+  std::unique_ptr<Rasteriser> cpu_;
+};
+
+TEST(Trainer, DeferredAttributesGiveTheSameMapAsFetchingEachBatch) {
+  GaussianTrainer::Params p;
+  p.iterations = 4;
+  p.max_scale = 0.2f;  // the grown Gaussians are pruned within a few keyframes
+  auto make = [&](bool defer, std::shared_ptr<Shadow>* shadow) {
+    *shadow = std::make_shared<Shadow>();
+    (*shadow)->defer_ok = defer;
+    return std::make_unique<GaussianTrainer>(p, std::make_unique<ShadowRasteriser>(*shadow),
+                                             std::make_unique<ShadowEngine>(*shadow));
+  };
+  std::shared_ptr<Shadow> sd, se;
+  auto deferred = make(true, &sd);
+  auto eager = make(false, &se);
+  ASSERT_TRUE(deferred->uses_engine());
+  size_t pruned = 0;
+  for (int k = 0; k < 6; ++k) {
+    const KeyframeReport a = deferred->add_keyframe(keyframe_of(k));
+    const KeyframeReport b = eager->add_keyframe(keyframe_of(k));
+    const std::string where = "keyframe " + std::to_string(k);
+    ASSERT_EQ(a.num_gaussians, b.num_gaussians) << where;
+    EXPECT_EQ(a.pruned_oversized, b.pruned_oversized) << where;
+    pruned += a.pruned_oversized;
+    // The deferring trainer's host copy is behind (nothing fetched it during the keyframe) ...
+    EXPECT_TRUE(sd->pending) << where;
+    EXPECT_NE(deferred->structure().positions(), eager->structure().positions()) << where;
+    EXPECT_EQ(deferred->structure().object_ids_per_gaussian(), eager->structure().object_ids_per_gaussian())
+        << where;
+    // ... and map() brings it level, every attribute to the bit; on every other keyframe only, so
+    // that removals and appends also meet attributes deferred over two batches.
+    if (k % 2 == 1) {
+      const GaussianMap& m = deferred->map();
+      EXPECT_FALSE(sd->pending) << where;
+      EXPECT_EQ(m.positions(), eager->map().positions()) << where;
+      EXPECT_EQ(m.log_scales(), eager->map().log_scales()) << where;
+      EXPECT_EQ(m.rotations(), eager->map().rotations()) << where;
+      EXPECT_EQ(m.colours(), eager->map().colours()) << where;
+      EXPECT_EQ(m.confidences(), eager->map().confidences()) << where;
+    }
+  }
+  EXPECT_GT(pruned, 0u) << "the grown Gaussians were to be pruned on the engine's values";
+  EXPECT_GT(sd->removals_pending, 0) << "removals were to meet deferred attributes";
+  // (This engine has no review of its own: the trainer's host review fetches at the start of a
+  // keyframe, after which the batch, the pruning and its removal run on deferred attributes.)
+  EXPECT_EQ(se->fetches, 0);
 }
 
 

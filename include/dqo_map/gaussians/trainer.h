@@ -200,7 +200,15 @@ class GaussianTrainer {
   // Replaces the map (a loaded one); optimiser and visibility state restart.
   void set_map(GaussianMap map);
 
-  const GaussianMap& map() const { return map_; }
+  // The map. With an engine that keeps the trained attributes on its device between batches
+  // (TrainingEngine::defer_attributes: the CUDA engine), they are brought down first where they
+  // are newer there (56 bytes a Gaussian, at most once a batch). Not for concurrent callers: the
+  // trainer, like its map, has one user at a time (the mapper's lock).
+  const GaussianMap& map() const;
+  // The map as the host holds it: its size, object IDs, flags and birth keyframes current, its
+  // trained attributes as of the last fetch (map() brings them). For counts and reports, which
+  // then cost no copy from the device.
+  const GaussianMap& structure() const { return map_; }
   // The optimiser state (fetched from the engine, which holds it between batches).
   const GaussianAdam::State& adam_state();
   Rasteriser& rasteriser() { return *rasteriser_; }
@@ -226,6 +234,9 @@ class GaussianTrainer {
     uint64_t key = 0;               // names the images for the engine; new when labels change
   };
 
+  // map_'s trained attributes from the engine where it holds newer ones (map() is const: the
+  // values it shows do not change, only where they are kept).
+  void fetch_attributes() const;
   // Training and the masks: the normalised depth (normalise_depth); render(): the surface
   // depth where surface_depth is set.
   RenderSettings settings(uint32_t ins_object, bool for_render) const;
@@ -269,6 +280,9 @@ class GaussianTrainer {
   std::unique_ptr<TrainingEngine> engine_;
   uint64_t next_key_ = 1;
   GaussianMap map_;
+  // The engine may hold newer trained attributes than map_'s (it defers them): fetched before
+  // the host reads them (fetch_attributes()).
+  mutable bool attributes_on_device_ = false;
   GaussianAdam adam_;
   // Per Gaussian, in step with map_.
   std::vector<uint16_t> invisible_count_;

@@ -87,6 +87,31 @@ class TrainingEngine {
     (void)relabels;
     return false;
   }
+  // Deferred attributes: where asked (on = true) and able, run() leaves the trained attributes
+  // (position, log-scale, rotation, colour, confidence) on the engine's device instead of writing
+  // them into the map after every batch (at 1.3 M Gaussians, 72 MB a keyframe the host seldom
+  // reads); the caller then reads them only after fetch_attributes(). Returns whether it defers.
+  virtual bool defer_attributes(bool on) {
+    (void)on;
+    return false;
+  }
+  // Writes the attributes the engine holds newer than `map`'s into it: the Gaussians it held when
+  // it trained them (the first ones; those appended since keep the host's). Nothing where none
+  // are pending. An engine that has to drop its copy (a failure on the device) brings them down
+  // first where it can, and writes them here.
+  virtual void fetch_attributes(GaussianMap* map) { (void)map; }
+  // Whether its copy shows `map` as it is now (after sync()): renders and reviews then use it.
+  virtual bool holds(const GaussianMap& map) const {
+    (void)map;
+    return false;
+  }
+  // Where it holds `map`: flags[i] = 1 where Gaussian i's largest log-scale exceeds
+  // max_log_scale (the pruning's oversized test, on the values it holds), else 0; true. False
+  // where it does not hold `map` (the caller tests its own values).
+  virtual bool flag_oversized(const GaussianMap& map, float max_log_scale, std::vector<uint8_t>* flags) {
+    (void)map, (void)max_log_scale, (void)flags;
+    return false;
+  }
   // Writes the optimiser state it holds into *adam (sized for the map); nothing if it holds none.
   virtual void fetch_optimiser_state(GaussianAdam* adam) { (void)adam; }
   // Device bytes held now (the map, optimiser state, gradients, the rasteriser's buffers, cached

@@ -129,7 +129,10 @@ class GaussianMapper {
   const ObjectRecord* find_object(ObjectId id) const;
   // The Gaussians of one object (0: the background) as a map of their own.
   gs::GaussianMap object_gaussians(ObjectId id) const;
+  // The map (its trained attributes fetched from the GPU first where they are kept there).
   const gs::GaussianMap& map() const { return trainer_->map(); }
+  // Its size, object IDs and flags, without that fetch (GaussianTrainer::structure()): for counts.
+  const gs::GaussianMap& map_structure() const { return trainer_->structure(); }
   void render(const PinholeCamera& camera, const SE3& T_wc, gs::RenderOutput* out);
   // Renders of the object's Gaussians alone from (at most mesh_views of) the mapped keyframes that
   // saw it; for the background (0), from every mapped keyframe (at most mesh_views).
