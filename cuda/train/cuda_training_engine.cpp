@@ -159,16 +159,27 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     pending_ = false;
   }
   bool holds(const gs::GaussianMap& map) const override { return resident_->shows(map); }
-  bool flag_oversized(const gs::GaussianMap& map, float max_log_scale, std::vector<uint8_t>* flags) override {
+  bool flag_prune(const gs::GaussianMap& map, float max_log_scale, int max_invisible, float* usefulness,
+                  uint16_t* invisible, uint8_t* votes, std::vector<uint8_t>* flags) override {
     if (!resident_->shows(map)) return false;
+    // The invisibility test needs the counters here: kept ones, or the caller's taken (and kept)
+    // where attributes are deferred; otherwise the caller tests its own.
+    if (max_invisible > 0 && !resident_->counters_held()) {
+      if (!defer_) return false;
+      resident_->take_counters(usefulness, invisible, votes, pipe_.stream());
+    }
     const size_t n = map.size();
     flags->resize(n);
     if (n == 0) return true;
-    uint8_t* d = flag_bytes_.ensure(n, "oversized flags");
-    resident_->flag_oversized(max_log_scale, d, pipe_.stream());
-    check(cudaMemcpyAsync(flags->data(), d, n, cudaMemcpyDeviceToHost, pipe_.stream()), "oversized flags");
-    check(cudaStreamSynchronize(pipe_.stream()), "oversized flags");
+    uint8_t* d = flag_bytes_.ensure(n, "pruning flags");
+    resident_->flag_prune(max_log_scale, max_invisible, d, pipe_.stream());
+    check(cudaMemcpyAsync(flags->data(), d, n, cudaMemcpyDeviceToHost, pipe_.stream()), "pruning flags");
+    check(cudaStreamSynchronize(pipe_.stream()), "pruning flags");
     return true;
+  }
+  bool holds_review_counters() const override { return resident_->counters_held(); }
+  void fetch_review_counters(float* usefulness, uint16_t* invisible, uint8_t* votes) override {
+    resident_->give_back_counters(usefulness, invisible, votes, pipe_.stream());
   }
   bool review(const gs::GaussianMap& map, const gs::TrainingView& view, const gs::RenderSettings& settings,
               const gs::ReviewView& rv, const gs::ReviewSettings& rs, float* usefulness, uint16_t* invisible,
@@ -184,11 +195,13 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     const cudaStream_t stream = pipe_.stream();
     resident_->wait();
     clock_.start(stream);  // with DQO_CUDA_STAGE_TIMES: the review's pass counts as one pass
-    // The view's depth and labels up; one pass of the map kept on the device, its colour gradient
-    // under the probe (1, [label = 0], [label != 0]) summed per Gaussian.
+    // The view's images cached (the batch that follows trains on them); one pass of the map kept
+    // on the device, its colour gradient under the probe (1, [label = 0], [label != 0]) summed per
+    // Gaussian.
+    const CachedView& cv = cached(view);
     gs::ReviewView dv = rv;
-    dv.depth = upload(&review_depth_, view.depth->data, "review images", stream);
-    dv.labels = upload(&review_labels_, view.labels->data, "review images", stream);
+    dv.depth = cv.depth.get();
+    dv.labels = cv.labels.get();
     const detail::DeviceGaussians g = resident_->gaussians();
     const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(camera, view.T_cw, settings.near);
     gs::RenderSettings pass = settings;
@@ -200,15 +213,27 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     detail::ImageGradientsDevice go;
     go.rgb = v_rgb;
     pipe_.backward_2d(go);
-    // The counters up, reviewed in place, down with the relabels (few: their count first).
-    float* d_usefulness = review_usefulness_.ensure(n, "review counters");
-    uint16_t* d_invisible = review_invisible_.ensure(n, "review counters");
-    uint8_t* d_votes = review_votes_.ensure(n, "review counters");
+    // The counters: those kept here (taken from the caller the first time, where attributes are
+    // deferred: then they stay), or the caller's up, reviewed in place and down with the relabels
+    // (few: their count first).
+    const bool keep = defer_;
+    if (keep && !resident_->counters_held()) resident_->take_counters(usefulness, invisible, votes, stream);
+    float* d_usefulness;
+    uint16_t* d_invisible;
+    uint8_t* d_votes;
+    if (keep) {
+      const detail::ResidentMap::Counters c = resident_->counters();
+      d_usefulness = c.usefulness, d_invisible = c.invisible, d_votes = c.votes;
+    } else {
+      d_usefulness = review_usefulness_.ensure(n, "review counters");
+      d_invisible = review_invisible_.ensure(n, "review counters");
+      d_votes = review_votes_.ensure(n, "review counters");
+      check(cudaMemcpyAsync(d_usefulness, usefulness, n * sizeof(float), cudaMemcpyHostToDevice, stream), "review");
+      check(cudaMemcpyAsync(d_invisible, invisible, n * sizeof(uint16_t), cudaMemcpyHostToDevice, stream), "review");
+      check(cudaMemcpyAsync(d_votes, votes, n, cudaMemcpyHostToDevice, stream), "review");
+    }
     uint2* d_relabels = review_relabels_.ensure(n, "review relabels");
     uint32_t* d_count = review_count_.ensure(1, "review relabels");
-    check(cudaMemcpyAsync(d_usefulness, usefulness, n * sizeof(float), cudaMemcpyHostToDevice, stream), "review");
-    check(cudaMemcpyAsync(d_invisible, invisible, n * sizeof(uint16_t), cudaMemcpyHostToDevice, stream), "review");
-    check(cudaMemcpyAsync(d_votes, votes, n, cudaMemcpyHostToDevice, stream), "review");
     check(cudaMemsetAsync(d_count, 0, sizeof(uint32_t), stream), "review");
     detail::launch_review(n, g.position, g.object_id, pipe_.tile_counts(), pipe_.grad2d(), dv, rs, d_usefulness,
                           d_invisible, d_votes, d_relabels, d_count, stream);
@@ -221,9 +246,11 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       check(cudaMemcpyAsync(listed.data(), d_relabels, count * sizeof(uint2), cudaMemcpyDeviceToHost, stream),
             "review");
     // Into the caller's counters only once everything ran: a failure leaves them as they were.
-    check(cudaMemcpyAsync(usefulness, d_usefulness, n * sizeof(float), cudaMemcpyDeviceToHost, stream), "review");
-    check(cudaMemcpyAsync(invisible, d_invisible, n * sizeof(uint16_t), cudaMemcpyDeviceToHost, stream), "review");
-    check(cudaMemcpyAsync(votes, d_votes, n, cudaMemcpyDeviceToHost, stream), "review");
+    if (!keep) {
+      check(cudaMemcpyAsync(usefulness, d_usefulness, n * sizeof(float), cudaMemcpyDeviceToHost, stream), "review");
+      check(cudaMemcpyAsync(invisible, d_invisible, n * sizeof(uint16_t), cudaMemcpyDeviceToHost, stream), "review");
+      check(cudaMemcpyAsync(votes, d_votes, n, cudaMemcpyDeviceToHost, stream), "review");
+    }
     check(cudaStreamSynchronize(stream), "review");
     relabels->reserve(count);
     for (const uint2& r : listed) relabels->emplace_back(r.x, r.y);
@@ -328,51 +355,55 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   }
 
   // Keeps the images of `views` on the device (new keys up, keys no longer in the window freed).
-  void cache_views(const std::vector<gs::TrainingView>& views) {
-    std::map<uint64_t, std::unique_ptr<CachedView>> kept;
-    for (const gs::TrainingView& view : views) {
-      auto it = cache_.find(view.key);
-      if (it != cache_.end()) {
-        kept.emplace(view.key, std::move(it->second));
-        cache_.erase(it);
-      }
+  // The view's images on the device: cached by key, uploaded on first use (by the review, before
+  // the batch that trains on the same keyframe).
+  CachedView& cached(const gs::TrainingView& view) {
+    const auto it = cache_.find(view.key);
+    if (it != cache_.end()) return *it->second;
+    const PinholeCamera& cam = *view.camera;
+    const size_t pixels = static_cast<size_t>(cam.width) * cam.height;
+    if (!view.rgb || !view.depth || !view.labels || view.rgb->data.size() != 3 * pixels ||
+        view.depth->data.size() != pixels || view.labels->data.size() != pixels) {
+      throw std::invalid_argument("CUDA training engine: a view's images do not match its camera");
     }
     // The views that left the window lend their buffers to the new ones (a pool of image buffers:
     // no cudaMalloc and cudaFree a keyframe, each of which waits for the device). Reuse is
-    // stream-ordered after the batches that read them; at most kSpareViews stay unused.
-    for (auto& [key, cv] : cache_) spare_.push_back(std::move(cv));
-    cache_.clear();
-    for (const gs::TrainingView& view : views) {
-      if (kept.count(view.key)) continue;
-      const PinholeCamera& cam = *view.camera;
-      const size_t pixels = static_cast<size_t>(cam.width) * cam.height;
-      if (!view.rgb || !view.depth || !view.labels || view.rgb->data.size() != 3 * pixels ||
-          view.depth->data.size() != pixels || view.labels->data.size() != pixels) {
-        throw std::invalid_argument("CUDA training engine: a view's images do not match its camera");
-      }
-      std::unique_ptr<CachedView> cv;
-      if (!spare_.empty()) {
-        cv = std::move(spare_.back());
-        spare_.pop_back();
-      } else {
-        cv = std::make_unique<CachedView>();
-      }
-      cv->pixels = pixels;
-      cv->valid_depth = 0;
-      for (const float d : view.depth->data) cv->valid_depth += valid_depth(d) ? 1 : 0;
-      const cudaStream_t stream = pipe_.stream();
-      // 8 bits up (a quarter of the floats' bytes), floats made here.
-      const uint8_t* rgb8 = upload(&rgb8_, view.rgb->data, "view images", stream);
-      detail::launch_unit_colours(3 * pixels, rgb8, cv->rgb.ensure(3 * pixels, "view images"), stream);
-      check(cudaGetLastError(), "view images");
-      upload(&cv->depth, view.depth->data, "view images", stream);
-      upload(&cv->labels, view.labels->data, "view images", stream);
-      kept.emplace(view.key, std::move(cv));
+    // stream-ordered after the batches that read them.
+    std::unique_ptr<CachedView> cv;
+    if (!spare_.empty()) {
+      cv = std::move(spare_.back());
+      spare_.pop_back();
+    } else {
+      cv = std::make_unique<CachedView>();
     }
-    // The host vectors stay alive until the batch ends (the trainer's window), so the copies need
-    // no wait here.
+    cv->pixels = pixels;
+    cv->valid_depth = 0;
+    for (const float d : view.depth->data) cv->valid_depth += valid_depth(d) ? 1 : 0;
+    const cudaStream_t stream = pipe_.stream();
+    // 8 bits up (a quarter of the floats' bytes), floats made here. The copies are from pageable
+    // memory: each returns once its bytes are staged, so the host images may go afterwards.
+    const uint8_t* rgb8 = upload(&rgb8_, view.rgb->data, "view images", stream);
+    detail::launch_unit_colours(3 * pixels, rgb8, cv->rgb.ensure(3 * pixels, "view images"), stream);
+    check(cudaGetLastError(), "view images");
+    upload(&cv->depth, view.depth->data, "view images", stream);
+    upload(&cv->labels, view.labels->data, "view images", stream);
+    return *cache_.emplace(view.key, std::move(cv)).first->second;
+  }
+
+  // The window's views cached, those gone from it moved to the spares (at most kSpareViews kept).
+  void cache_views(const std::vector<gs::TrainingView>& views) {
+    for (auto it = cache_.begin(); it != cache_.end();) {
+      const bool wanted = std::any_of(views.begin(), views.end(),
+                                      [&](const gs::TrainingView& v) { return v.key == it->first; });
+      if (wanted) {
+        ++it;
+      } else {
+        spare_.push_back(std::move(it->second));
+        it = cache_.erase(it);
+      }
+    }
+    for (const gs::TrainingView& view : views) cached(view);
     check(cudaStreamSynchronize(pipe_.stream()), "view images");
-    cache_ = std::move(kept);
     if (spare_.size() > kSpareViews) spare_.resize(kSpareViews);  // freed: the stream is idle now
   }
 
@@ -388,13 +419,13 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   DeviceBuffer<float> v_rgb_, v_depth_, v_ins_;
   DeviceBuffer<uint8_t> rgb8_;  // a view's 8-bit colours on their way up (stream-ordered reuse)
   DeviceBuffer<double> sums_;
-  // review()'s: the view's depth and labels, the trainer's counters, the relabels and their count.
-  DeviceBuffer<float> review_depth_, review_usefulness_;
-  DeviceBuffer<uint32_t> review_labels_, review_count_;
+  // review()'s: the trainer's counters, the relabels and their count.
+  DeviceBuffer<float> review_usefulness_;
+  DeviceBuffer<uint32_t> review_count_;
   DeviceBuffer<uint16_t> review_invisible_;
   DeviceBuffer<uint8_t> review_votes_;
   DeviceBuffer<uint2> review_relabels_;
-  DeviceBuffer<uint8_t> flag_bytes_;  // flag_oversized()'s
+  DeviceBuffer<uint8_t> flag_bytes_;  // flag_prune()'s
   // Deferred attributes (defer_attributes()): asked for; the device's newer than the host map's;
   // what a failed removal brought down for fetch_attributes().
   bool defer_ = false;

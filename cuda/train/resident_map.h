@@ -64,6 +64,8 @@ class ResidentMap {
     valid_ = false;
     count_ = 0;
     synced_map_ = nullptr;
+    flags_map_ = nullptr;
+    counters_held_ = false;
   }
   // Whether the device copy shows `map` as it is: it is the map of the latest sync_up(), which
   // has not added, removed or relabelled Gaussians since (GaussianMap::revision()). Its renders
@@ -84,9 +86,25 @@ class ResidentMap {
     std::vector<float> position, log_scale, rotation, colour, confidence;
   };
   Trained download_trained(cudaStream_t stream) const;
-  // flags[i] = 1 where the held Gaussian i's largest log-scale exceeds max_log_scale, else 0
-  // (flags: count() bytes on the device; asynchronous).
-  void flag_oversized(float max_log_scale, uint8_t* flags, cudaStream_t stream) const;
+  // The pruning's flags of the held Gaussians (flags: count() bytes on the device; asynchronous):
+  // kPruneOversized by max_log_scale, kPruneInvisible by the held counters and max_invisible (> 0,
+  // with counters_held() only).
+  void flag_prune(float max_log_scale, int max_invisible, uint8_t* flags, cudaStream_t stream) const;
+
+  // The trainer's review counters (usefulness, invisible keyframes, relabel votes), kept here from
+  // review to review once taken: appended Gaussians start at (+inf, 0, 0) as the host's do, and
+  // removals apply the same plan. take_counters() sends the caller's count() entries;
+  // give_back_counters() brings them into the caller's first count() (waits) and holds them no
+  // more. invalidate() drops them.
+  bool counters_held() const { return counters_held_; }
+  void take_counters(const float* usefulness, const uint16_t* invisible, const uint8_t* votes, cudaStream_t stream);
+  void give_back_counters(float* usefulness, uint16_t* invisible, uint8_t* votes, cudaStream_t stream);
+  struct Counters {
+    float* usefulness;
+    uint16_t* invisible;
+    uint8_t* votes;
+  };
+  Counters counters() { return Counters{usefulness_.get(), invisible_.get(), votes_.get()}; }
   // The optimiser state of the count() Gaussians held into the first count() of `adam` (sized for
   // at least as many; those appended since keep theirs); asynchronous likewise.
   void download_optimiser(gs::GaussianAdam* adam, cudaStream_t stream) const;
@@ -100,6 +118,11 @@ class ResidentMap {
   HostCopy download_all(cudaStream_t stream) const;
 
   bool valid() const { return valid_; }
+  // Host bytes the latest sync_up() sent (its flags included), for tests and diagnostics.
+  size_t bytes_sent_last() const { return sent_; }
+  // What an appended Gaussian sends but its flags: its attributes and optimiser state (the
+  // moments counted, though sent as zeros where the host keeps none).
+  static constexpr size_t kBytesPerAppended = (3 + 3 + 4 + 3 + 1 + 1) * 4 + 1 + 2 * (3 + 3 + 4 + 3) * 4 + 4;
   size_t count() const { return count_; }
   DeviceTrainable trainable();
   DeviceGaussians gaussians() const;
@@ -110,11 +133,20 @@ class ResidentMap {
   size_t count_ = 0;
   const gs::GaussianMap* synced_map_ = nullptr;  // the map and revision of the latest sync_up()
   uint64_t synced_revision_ = 0;
+  // The map and GaussianMap::flags_revision() whose flags the device holds (the same after a
+  // remove_if(): both sides apply one plan).
+  const gs::GaussianMap* flags_map_ = nullptr;
+  uint64_t flags_revision_ = 0;
+  size_t sent_ = 0;
   cudaStream_t stream_ = nullptr;  // of the latest call that wrote the arrays
   GrowingBuffer<float> position_, log_scale_, rotation_, colour_, confidence_, opacity_;
   GrowingBuffer<float> m_[4], v_[4];  // position, log-scale, rotation, colour
   GrowingBuffer<uint32_t> steps_, object_id_;
   GrowingBuffer<uint8_t> stable_, type_;
+  bool counters_held_ = false;
+  GrowingBuffer<float> usefulness_;
+  GrowingBuffer<uint16_t> invisible_;
+  GrowingBuffer<uint8_t> votes_;
   // remove_if()'s plan on the device (gs::RemovalPlan's holes and sources).
   DeviceBuffer<uint32_t> holes_, sources_;
 

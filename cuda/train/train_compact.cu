@@ -29,6 +29,12 @@ void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const 
   fill_holes_kernel<<<blocks(moves * width), kBlock, 0, stream>>>(moves, width, holes, sources, a);
 }
 
+void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint16_t* a,
+                       cudaStream_t stream) {
+  if (moves == 0) return;
+  fill_holes_kernel<<<blocks(moves * width), kBlock, 0, stream>>>(moves, width, holes, sources, a);
+}
+
 void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint8_t* a,
                        cudaStream_t stream) {
   if (moves == 0) return;

@@ -71,11 +71,21 @@ void launch_adam(const DeviceTrainable& t, const uint32_t* tile_count, const flo
 // is both read and written); for 4-byte (float bits too) and 1-byte values.
 void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint32_t* a,
                        cudaStream_t stream);
+void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint16_t* a,
+                       cudaStream_t stream);
 void launch_fill_holes(size_t moves, size_t width, const uint32_t* holes, const uint32_t* sources, uint8_t* a,
                        cudaStream_t stream);
 
-// The pruning's size test (train_prune.cu): flags[i] = gs::oversized(log_scale + 3i, max_log_scale).
-void launch_flag_oversized(size_t n, const float* log_scale, float max_log_scale, uint8_t* flags,
+// The pruning's tests (train_prune.cu): flags[i] = kPruneOversized where gs::oversized(log_scale +
+// 3i, max_log_scale), | kPruneInvisible where invisible (may be null: not tested) holds at least
+// max_invisible (> 0).
+constexpr uint8_t kPruneOversized = 1, kPruneInvisible = 2;
+void launch_flag_prune(size_t n, const float* log_scale, float max_log_scale, const uint16_t* invisible,
+                       int max_invisible, uint8_t* flags, cudaStream_t stream);
+
+// The review counters of Gaussians [from, n) as the trainer starts them: usefulness +inf (not yet
+// measured), no invisible keyframes, no votes (train_review.cu).
+void launch_start_counters(size_t from, size_t n, float* usefulness, uint16_t* invisible, uint8_t* votes,
                            cudaStream_t stream);
 
 // The keyframe review on the device (train_review.cu). The probe's output gradient per pixel:
@@ -83,7 +93,8 @@ void launch_flag_oversized(size_t n, const float* log_scale, float max_log_scale
 void launch_review_probe(size_t pixels, const uint32_t* labels, float* v_rgb, cudaStream_t stream);
 // math/review.h's step for each of n Gaussians, with the colour sums of grad2d (zero where
 // tile_count is 0: the pass culled it); `view`'s depth and labels on the device. Each relabel
-// appends (index, new label) at atomicAdd(relabel_count), in no particular order.
+// appends (index, new label) at atomicAdd(relabel_count), in no particular order, and starts the
+// Gaussian's votes over (as GaussianTrainer's relabelling does).
 void launch_review(size_t n, const float* position, const uint32_t* object_id, const uint32_t* tile_count,
                    const Grad2D* grad2d, const gs::ReviewView& view, const gs::ReviewSettings& settings,
                    float* usefulness, uint16_t* invisible, uint8_t* votes, uint2* relabels, uint32_t* relabel_count,

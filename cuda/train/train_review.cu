@@ -36,8 +36,17 @@ __global__ void review_kernel(size_t n, const float* position, const uint32_t* o
   if (!gs::review_gaussian(view, settings, position + 3 * i, object_id[i], sums, usefulness + i, invisible + i,
                            votes + i, &new_label))
     return;
+  votes[i] = 0;
   const uint32_t k = atomicAdd(relabel_count, 1u);
   relabels[k] = make_uint2(static_cast<uint32_t>(i), new_label);  // room for n: never out of bounds
+}
+
+__global__ void start_counters_kernel(size_t from, size_t n, float* usefulness, uint16_t* invisible, uint8_t* votes) {
+  const size_t i = from + static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (i >= n) return;
+  usefulness[i] = INFINITY;
+  invisible[i] = 0;
+  votes[i] = 0;
 }
 
 }  // namespace
@@ -45,6 +54,12 @@ __global__ void review_kernel(size_t n, const float* position, const uint32_t* o
 void launch_review_probe(size_t pixels, const uint32_t* labels, float* v_rgb, cudaStream_t stream) {
   if (pixels == 0) return;
   review_probe_kernel<<<blocks(pixels), kBlock, 0, stream>>>(pixels, labels, v_rgb);
+}
+
+void launch_start_counters(size_t from, size_t n, float* usefulness, uint16_t* invisible, uint8_t* votes,
+                           cudaStream_t stream) {
+  if (n <= from) return;
+  start_counters_kernel<<<blocks(n - from), kBlock, 0, stream>>>(from, n, usefulness, invisible, votes);
 }
 
 void launch_review(size_t n, const float* position, const uint32_t* object_id, const uint32_t* tile_count,

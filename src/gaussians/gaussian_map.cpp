@@ -145,7 +145,7 @@ size_t GaussianMap::relabel(uint32_t from, uint32_t to) {
       ++n;
     }
   }
-  if (n) revision_.bump();
+  if (n) revision_.bump(), flags_revision_.bump();
   return n;
 }
 
@@ -161,7 +161,7 @@ size_t GaussianMap::relabel_each(const std::vector<std::pair<uint32_t, uint32_t>
     object_id_[index] = id;
     ++n;
   }
-  if (n) revision_.bump();
+  if (n) revision_.bump(), flags_revision_.bump();
   return n;
 }
 

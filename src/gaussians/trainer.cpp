@@ -76,6 +76,13 @@ const GaussianMap& GaussianTrainer::map() const {
   return map_;
 }
 
+void GaussianTrainer::fetch_counters() {
+  if (!counters_on_device_) return;
+  sync_state();
+  engine_->fetch_review_counters(usefulness_.data(), invisible_count_.data(), relabel_votes_.data());
+  counters_on_device_ = false;
+}
+
 void GaussianTrainer::fetch_attributes() const {
   if (!attributes_on_device_) return;
   // map_ is not a const object: only this trainer's const view of it is.
@@ -176,10 +183,10 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   }
   t = std::chrono::steady_clock::now();
 
-  // Stabilise (off by default: no pass over the map then).
-  auto& stable = map_.stable();
+  // Stabilise (off by default: no pass over the map, and its flags stay as the device has them).
   if (params_.stable_confidence > 0.f) {
     fetch_attributes();
+    auto& stable = map_.stable();
     const auto& confidence = map_.confidences();
     for (size_t i = 0; i < map_.size(); ++i) {
       if (!stable[i] && confidence[i] >= params_.stable_confidence) {
@@ -200,7 +207,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   report.prune_ms = ms_since(t);
 
   report.num_gaussians = map_.size();
-  for (size_t i = 0; i < map_.size(); ++i) report.num_unstable += stable[i] ? 0 : 1;
+  for (const uint8_t s : std::as_const(map_).stable()) report.num_unstable += s ? 0 : 1;
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;
 }
@@ -221,6 +228,7 @@ bool GaussianTrainer::with_memory_retry(Step step, KeyframeReport* report) {
 
 size_t GaussianTrainer::shrink(double fraction) {
   sync_state();
+  fetch_counters();
   const size_t n = map_.size();
   const size_t drop = static_cast<size_t>(fraction * static_cast<double>(n));
   if (drop == 0) return 0;
@@ -338,11 +346,13 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
     std::vector<std::pair<uint32_t, uint32_t>> relabels;
     if (engine_->review(map_, tv, settings(0, false), view, rs, usefulness_.data(), invisible_count_.data(),
                         relabel_votes_.data(), &relabels)) {
+      counters_on_device_ = engine_->holds_review_counters();
       relabel_gaussians(relabels);
       return;
     }
   }
-  fetch_attributes();  // the host's pass and loop read the map's values
+  fetch_attributes();  // the host's pass and loop read the map's values and the counters
+  fetch_counters();
   const size_t n_pixels = kf.labels.data.size();
   OutputGradients& probe = scratch_.probe;
   probe.rgb.resize(3 * n_pixels);
@@ -636,7 +646,7 @@ double GaussianTrainer::iterate(const StoredKeyframe& kf) {
   // Step the unstable Gaussians that this view reached.
   const size_t n = map_.size();
   std::vector<uint8_t> update(n, 0);
-  const auto& stable = map_.stable();
+  const auto& stable = std::as_const(map_).stable();
   auto any = [](const std::vector<float>& g, size_t i, size_t width) {
     for (size_t k = 0; k < width; ++k) {
       if (g[i * width + k] != 0.f) return true;
@@ -659,17 +669,26 @@ void GaussianTrainer::prune(KeyframeReport* report) {
   if (n == 0) return;
   const uint32_t now = static_cast<uint32_t>(keyframe_count_ - 1);
   const float max_log_scale = std::log(params_.max_scale);
-  const auto& stable = map_.stable();
+  const auto& stable = std::as_const(map_).stable();
   const auto& birth = map_.birth_keyframes();
-  // The size test on the values the engine holds where it holds them (1 byte a Gaussian down),
-  // else on the host's.
-  std::vector<uint8_t> too_large;
-  if (!(uses_engine() && engine_->flag_oversized(map_, max_log_scale, &too_large))) {
+  // The size and invisibility tests (bits 0 and 1) on what the engine holds where it holds the
+  // map (1 byte a Gaussian down), else on the host's values.
+  constexpr uint8_t kTooLarge = 1, kUnseen = 2;
+  std::vector<uint8_t> tests;
+  const int max_invisible = params_.max_invisible_keyframes;
+  if (uses_engine() && engine_->flag_prune(map_, max_log_scale, max_invisible, usefulness_.data(),
+                                           invisible_count_.data(), relabel_votes_.data(), &tests)) {
+    counters_on_device_ = engine_->holds_review_counters();
+  } else {
     fetch_attributes();
+    fetch_counters();
     const auto& log_scale = map_.log_scales();
-    too_large.resize(n);
+    tests.resize(n);
     detail::parallel_for_chunks(detail::resolve_threads(0), n, [&](size_t begin, size_t end) {
-      for (size_t i = begin; i < end; ++i) too_large[i] = oversized(log_scale.data() + 3 * i, max_log_scale) ? 1 : 0;
+      for (size_t i = begin; i < end; ++i) {
+        tests[i] = (oversized(log_scale.data() + 3 * i, max_log_scale) ? kTooLarge : 0) |
+                   (max_invisible > 0 && invisible_count_[i] >= max_invisible ? kUnseen : 0);
+      }
     });
   }
   std::vector<uint8_t> remove(n, 0);
@@ -683,11 +702,10 @@ void GaussianTrainer::prune(KeyframeReport* report) {
           now - birth[i] > static_cast<uint32_t>(params_.max_unstable_age)) {
         remove[i] = 1;
         ++n_stale;
-      } else if (too_large[i]) {
+      } else if (tests[i] & kTooLarge) {
         remove[i] = 1;
         ++n_oversized;
-      } else if (params_.max_invisible_keyframes > 0 &&
-                 invisible_count_[i] >= params_.max_invisible_keyframes) {
+      } else if (tests[i] & kUnseen) {
         remove[i] = 1;
         ++n_invisible;
       }
@@ -712,6 +730,7 @@ void GaussianTrainer::prune(KeyframeReport* report) {
     state_only.outputs = 0;  // the review reads the pass's state alone
     rasteriser_->forward(map_, newest.camera, newest.T_wc.inverse(), state_only, &out, &state);
     review_gaussians(newest, *state, true);
+    fetch_counters();  // the usefulness, on the host for the selection
     std::vector<uint32_t> order;
     order.reserve(kept);
     for (size_t i = 0; i < n; ++i) {
@@ -803,6 +822,7 @@ size_t GaussianTrainer::relabel(uint32_t from, uint32_t to) {
 void GaussianTrainer::set_map(GaussianMap map) {
   map_ = std::move(map);
   attributes_on_device_ = false;
+  counters_on_device_ = false;
   if (engine_) engine_->map_replaced();
   adam_.reset();
   invisible_count_.assign(map_.size(), 0);

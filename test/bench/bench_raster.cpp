@@ -17,6 +17,11 @@
 // warms up); the median milliseconds of the step and of its parts:
 //
 //   bench_raster --map MAP.ply --camera MAP.camera.txt --backend cuda --keyframes 5
+//
+// With --extend-to N as well, the map grows to N Gaussians by copies of itself placed behind the
+// camera (8 m apart along its axis, out of every keyframe's view): the view's work stays that of
+// MAP while the map grows, as when a robot maps room after room (the flat update: only
+// what a keyframe sees trains).
 
 #include <algorithm>
 #include <chrono>
@@ -205,8 +210,28 @@ int bench_keyframes(const GaussianMap& map, const PinholeCamera& cam, const SE3&
   return 0;
 }
 
+// `map` grown to n Gaussians by copies of itself behind the camera (--extend-to).
+GaussianMap extended(const GaussianMap& map, const SE3& T_cw, size_t n) {
+  GaussianMap out = map;
+  if (map.empty() || n <= map.size()) return out;
+  out.reserve(n);
+  // The camera's axis in the world; the copies start 8 m behind the camera (the map's own extent
+  // in front of it is under 8 m: room_gaussians.py's room is 6 × 5 × 2.8 m).
+  const SE3 T_wc = T_cw.inverse();
+  const Eigen::Vector3f back = -T_wc.rotation().col(2).cast<float>();
+  for (int copy = 1; out.size() < n; ++copy) {
+    const Eigen::Vector3f shift = (8.f * copy + 8.f) * back;
+    for (size_t i = 0; i < map.size() && out.size() < n; ++i) {
+      GaussianInit g = map.gaussian(i);
+      g.position += shift;
+      out.add(g);
+    }
+  }
+  return out;
+}
+
 int bench_map(const std::string& map_path, const std::string& camera_path, const std::string& backend, int repeats,
-              int threads, int keyframes) {
+              int threads, int keyframes, size_t extend_to) {
   std::string error;
   const auto map = load_gaussians_ply(map_path, &error);
   PinholeCamera cam;
@@ -215,7 +240,19 @@ int bench_map(const std::string& map_path, const std::string& camera_path, const
     std::fprintf(stderr, "bench_raster: %s\n", error.c_str());
     return 1;
   }
-  if (keyframes > 0) return bench_keyframes(*map, cam, T_cw, backend, keyframes, threads);
+  if (keyframes > 0) {
+    if (extend_to > map->size()) {
+      const GaussianMap grown = extended(*map, T_cw, extend_to);
+      std::printf("map extended to %zu Gaussians: %zu in view, the rest in copies behind the camera\n", grown.size(),
+                  map->size());
+      return bench_keyframes(grown, cam, T_cw, backend, keyframes, threads);
+    }
+    return bench_keyframes(*map, cam, T_cw, backend, keyframes, threads);
+  }
+  if (extend_to > 0) {
+    std::fprintf(stderr, "bench_raster: --extend-to goes with --keyframes\n");
+    return 2;
+  }
   std::unique_ptr<Rasteriser> r;
   if (backend == "cpu") {
     r = make_cpu_rasteriser(threads);
@@ -291,6 +328,7 @@ int main(int argc, char** argv) {
   std::string map_path, camera_path, backend = "cpu";
   bool repeats_given = false;
   int keyframes = 0;
+  size_t extend_to = 0;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--map"))
       map_path = argv[i + 1];
@@ -304,13 +342,15 @@ int main(int argc, char** argv) {
       threads = parse_list(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--keyframes"))
       keyframes = std::max(0, std::atoi(argv[i + 1]));
+    else if (!std::strcmp(argv[i], "--extend-to"))
+      extend_to = static_cast<size_t>(std::max(0.0, std::atof(argv[i + 1])));
     else if (!std::strcmp(argv[i], "--repeats"))
       repeats = std::max(1, std::atoi(argv[i + 1])), repeats_given = true;
     else {
       std::fprintf(stderr,
                    "usage: bench_raster [--counts A,B] [--threads A,B] [--repeats N]\n"
                    "       bench_raster --map MAP.ply --camera MAP.camera.txt [--backend cpu|cuda] [--repeats N]\n"
-                   "                    [--keyframes K]\n");
+                   "                    [--keyframes K [--extend-to N]]\n");
       return 2;
     }
   }
@@ -320,7 +360,7 @@ int main(int argc, char** argv) {
       return 2;
     }
     return bench_map(map_path, camera_path, backend, repeats_given ? repeats : 50, threads.empty() ? 0 : threads[0],
-                     keyframes);
+                     keyframes, extend_to);
   }
   const int sizes[][2] = {{320, 240}, {640, 480}};
   std::printf("CPU rasteriser, median of %d runs (ms); loss gradient on rgb, depth and ins\n",

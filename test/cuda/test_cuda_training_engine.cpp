@@ -24,6 +24,7 @@
 #include "dqo_map/cuda/device_info.h"
 #include "dqo_map/gaussians/math/prune.h"
 #include "dqo_map/gaussians/math/review.h"
+#include "dqo_map/gaussians/removal_plan.h"
 #include "dqo_map/gaussians/trainer.h"
 
 namespace dqo::cuda {
@@ -199,18 +200,23 @@ TEST(CudaTrainingEngine, WholeMappingRunsReachTheHostsQuality) {
 // math/review.h with the CPU rasteriser's colour sums: the same counters and relabels, but for the
 // few Gaussians whose sums (added in another order) sit on a threshold. A third of object 1's
 // Gaussians start labelled background and the views show them on its pixels: relabels happen.
+// Two engines: a lone one, which takes the host's counters and gives them back each review, and
+// the backend's with deferred attributes, which keeps its own from review to review — through a
+// removal and appends between keyframes — until fetched at the end; its pruning flags
+// (flag_prune: size and invisibility) are then the host's too.
 TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
   if (!gpu_available()) GTEST_SKIP() << "no GPU";
   const gs::GaussianMap truth = truth_map(3);
   gs::GaussianMap map = truth;
+  std::vector<uint32_t> truth_ids = truth.object_ids_per_gaussian();  // in step with map's indices
   std::vector<std::pair<uint32_t, uint32_t>> wrong;
   for (uint32_t i : map.indices_of(1))
     if (i % 3 == 0) wrong.emplace_back(i, 0u);
   ASSERT_GT(map.relabel_each(wrong), 100u);
-  const size_t n = map.size();
   gs::GaussianAdam adam;
-  adam.resize_for(map);
   auto engine = make_cuda_training_engine();
+  CudaBackend backend = make_cuda_backend();
+  ASSERT_TRUE(backend.engine->defer_attributes(true));
   auto cpu = gs::make_cpu_rasteriser(0);
   const gs::GaussianTrainer::Params p;
   gs::ReviewSettings rs{};
@@ -224,13 +230,50 @@ TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
   rs.check_labels = true;
   gs::RenderSettings settings;
   settings.normalise_depth = p.normalise_depth;
-  std::vector<float> use_h(n, std::numeric_limits<float>::infinity());
-  std::vector<uint16_t> inv_h(n, 0);
-  std::vector<uint8_t> votes_h(n, 0);
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<float> use_h(map.size(), inf), use_k = use_h;
+  std::vector<uint16_t> inv_h(map.size(), 0), inv_k = inv_h;
+  std::vector<uint8_t> votes_h(map.size(), 0), votes_k = votes_h;
+  // Counters alike: the same but for Gaussians whose sums sit on a threshold (rare).
+  auto count_differing = [](const std::vector<float>& ua, const std::vector<uint16_t>& ia,
+                            const std::vector<uint8_t>& va, const std::vector<float>& ub,
+                            const std::vector<uint16_t>& ib, const std::vector<uint8_t>& vb) {
+    size_t off = 0;
+    for (size_t i = 0; i < ua.size(); ++i) {
+      const bool same = ia[i] == ib[i] && va[i] == vb[i] &&
+                        (ua[i] == ub[i] || std::abs(ua[i] - ub[i]) <= 1e-4f * std::abs(ub[i]) + 1e-6f);
+      off += same ? 0 : 1;
+    }
+    return off;
+  };
   size_t relabelled = 0, fixed = 0;
-  for (int k = 0; k < 4; ++k) {
+  for (int k = 0; k < 5; ++k) {
     const std::string where = "keyframe " + std::to_string(k);
-    const gs::TrainingKeyframe kf = keyframe(truth, k);
+    if (k == 3) {
+      // Between keyframes: every seventh Gaussian removed (by one plan everywhere: the map, the
+      // host's counters, the backend's kept ones), then 40 appended (counters start afresh).
+      std::vector<uint8_t> remove(map.size(), 0);
+      for (size_t i = 0; i < remove.size(); i += 7) remove[i] = 1;
+      const gs::RemovalPlan plan = gs::plan_removal(remove);
+      map.remove_if(remove);
+      adam.remove_if(remove);
+      backend.engine->map_removed(remove);
+      gs::apply_removal(&truth_ids, 1, plan);
+      gs::apply_removal(&use_h, 1, plan);
+      gs::apply_removal(&inv_h, 1, plan);
+      gs::apply_removal(&votes_h, 1, plan);
+      for (int a = 0; a < 40; ++a) {
+        gs::GaussianInit g = truth.gaussian(static_cast<size_t>(a) * 11);
+        g.position += Eigen::Vector3f(0.01f, 0.f, 0.f);
+        map.add(g);
+        truth_ids.push_back(g.object_id);
+        use_h.push_back(inf), inv_h.push_back(0), votes_h.push_back(0);
+      }
+      use_k.resize(map.size(), inf), inv_k.resize(map.size(), 0), votes_k.resize(map.size(), 0);
+    }
+    const size_t n = map.size();
+    adam.resize_for(map);
+    const gs::TrainingKeyframe kf = keyframe(truth, k % 4);
     const SE3 T_cw = kf.T_wc.inverse();
     gs::ReviewView view;
     const Eigen::Matrix3d R = T_cw.rotation();
@@ -242,7 +285,8 @@ TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
     view.width = kf.camera.width, view.height = kf.camera.height;
     view.depth = kf.depth.data.data();
     view.labels = kf.labels.data.data();
-    // Host: the probe's colour sums from the CPU rasteriser, then the loop.
+    // Host: the probe's colour sums from the CPU rasteriser, then the loop (a relabelled
+    // Gaussian's votes start over, as the trainer's relabelling does).
     gs::RenderOutput out;
     std::unique_ptr<gs::RenderState> state;
     cpu->forward(map, kf.camera, T_cw, settings, &out, &state);
@@ -255,47 +299,79 @@ TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
     }
     gs::MapGradients g;
     cpu->backward(map, kf.camera, T_cw, settings, *state, probe, &g);
-    std::vector<float> use_d = use_h;  // the device starts from the host's counters
+    std::vector<float> use_d = use_h;  // the lone engine starts from the host's counters
     std::vector<uint16_t> inv_d = inv_h;
     std::vector<uint8_t> votes_d = votes_h;
-    std::vector<std::pair<uint32_t, uint32_t>> relabels_h, relabels_d;
+    std::vector<std::pair<uint32_t, uint32_t>> relabels_h, relabels_d, relabels_k;
     for (size_t i = 0; i < n; ++i) {
       uint32_t id = 0;
       if (gs::review_gaussian(view, rs, map.positions().data() + 3 * i, map.object_ids_per_gaussian()[i],
-                              g.colour.data() + 3 * i, &use_h[i], &inv_h[i], &votes_h[i], &id))
+                              g.colour.data() + 3 * i, &use_h[i], &inv_h[i], &votes_h[i], &id)) {
         relabels_h.emplace_back(static_cast<uint32_t>(i), id);
+        votes_h[i] = 0;
+      }
     }
-    // Device.
-    engine->sync(map, adam);
+    // Devices.
     const gs::TrainingView tv{kf.id, &kf.camera, T_cw, &kf.rgb, &kf.depth, &kf.labels};
+    engine->sync(map, adam);
     ASSERT_TRUE(engine->review(map, tv, settings, view, rs, use_d.data(), inv_d.data(), votes_d.data(), &relabels_d))
         << where;
-    size_t off = 0;
-    for (size_t i = 0; i < n; ++i) {
-      const bool same = inv_d[i] == inv_h[i] && votes_d[i] == votes_h[i] &&
-                        (use_d[i] == use_h[i] || std::abs(use_d[i] - use_h[i]) <= 1e-4f * std::abs(use_h[i]) + 1e-6f);
-      off += same ? 0 : 1;
-    }
-    std::vector<std::pair<uint32_t, uint32_t>> only;
+    EXPECT_FALSE(engine->holds_review_counters()) << where;
+    backend.engine->sync(map, adam);
+    ASSERT_TRUE(backend.engine->review(map, tv, settings, view, rs, use_k.data(), inv_k.data(), votes_k.data(),
+                                       &relabels_k))
+        << where;
+    EXPECT_TRUE(backend.engine->holds_review_counters()) << where;
+    const size_t off = count_differing(use_d, inv_d, votes_d, use_h, inv_h, votes_h);
+    std::vector<std::pair<uint32_t, uint32_t>> only, only_k;
     std::set_symmetric_difference(relabels_h.begin(), relabels_h.end(), relabels_d.begin(), relabels_d.end(),
                                   std::back_inserter(only));
-    std::printf("%s: %zu of %zu Gaussians' counters differ, relabels host %zu device %zu (%zu not shared)\n",
-                where.c_str(), off, n, relabels_h.size(), relabels_d.size(), only.size());
+    std::set_symmetric_difference(relabels_h.begin(), relabels_h.end(), relabels_k.begin(), relabels_k.end(),
+                                  std::back_inserter(only_k));
+    std::printf("%s: %zu of %zu Gaussians' counters differ, relabels host %zu device %zu kept %zu (%zu, %zu not "
+                "shared)\n",
+                where.c_str(), off, n, relabels_h.size(), relabels_d.size(), relabels_k.size(), only.size(),
+                only_k.size());
     EXPECT_LE(off, n / 500) << where;
     EXPECT_LE(only.size(), relabels_h.size() / 50 + 2) << where;
-    // On from the host's result, as the trainer goes on (relabelled: votes start over).
-    for (const auto& [i, id] : relabels_h) {
-      fixed += id == 1 && std::binary_search(wrong.begin(), wrong.end(), std::make_pair(i, 0u)) ? 1 : 0;
-      votes_h[i] = 0;
-    }
+    EXPECT_LE(only_k.size(), relabels_h.size() / 50 + 2) << where;
+    // On from the host's result, as the trainer goes on.
+    for (const auto& [i, id] : relabels_h) fixed += id == 1 && truth_ids[i] == 1 ? 1 : 0;
     map.relabel_each(relabels_h);
     relabelled += relabels_h.size();
   }
   // Relabels happened (a Gaussian needs relabel_keyframes views in a row voting for the same
   // label: those the first keyframes see), and most put a mislabelled Gaussian back.
-  std::printf("relabelled %zu, of which %zu of the %zu mislabelled back to object 1\n", relabelled, fixed, wrong.size());
+  std::printf("relabelled %zu, of which %zu of the %zu mislabelled back to object 1\n", relabelled, fixed,
+              wrong.size());
   EXPECT_GE(fixed, 50u) << "the mislabelled Gaussians were to follow the views";
   EXPECT_GE(fixed, relabelled * 9 / 10);
+  // The backend's pruning flags on its kept counters, then the counters themselves, handed back.
+  const float max_log_scale = std::log(0.045f);
+  const int max_invisible = 2;
+  std::vector<uint8_t> flags;
+  backend.engine->sync(map, adam);  // the last relabelling changed the map
+  ASSERT_TRUE(backend.engine->flag_prune(map, max_log_scale, max_invisible, use_k.data(), inv_k.data(),
+                                         votes_k.data(), &flags));
+  ASSERT_EQ(flags.size(), map.size());
+  size_t flag_off = 0, unseen = 0;
+  for (size_t i = 0; i < map.size(); ++i) {
+    const uint8_t want = (gs::oversized(map.log_scales().data() + 3 * i, max_log_scale) ? 1 : 0) |
+                         (inv_h[i] >= max_invisible ? 2 : 0);
+    flag_off += flags[i] != want ? 1 : 0;
+    unseen += (flags[i] & 2) ? 1 : 0;
+  }
+  std::printf("pruning flags: %zu invisible for %d keyframes, %zu differ from the host's\n", unseen, max_invisible,
+              flag_off);
+  EXPECT_LE(flag_off, map.size() / 500);
+  EXPECT_GT(unseen, 0u);
+  backend.engine->fetch_review_counters(use_k.data(), inv_k.data(), votes_k.data());
+  EXPECT_FALSE(backend.engine->holds_review_counters());
+  const size_t off_k = count_differing(use_k, inv_k, votes_k, use_h, inv_h, votes_h);
+  std::printf("kept counters after %d keyframes: %zu of %zu differ from the host's\n", 5, off_k, map.size());
+  EXPECT_LE(off_k, map.size() / 500);
+  const size_t fresh = static_cast<size_t>(std::count(use_k.end() - 40, use_k.end(), inf));
+  EXPECT_LT(fresh, 40u) << "the appended Gaussians were reviewed too";
 }
 
 // The backend's engine keeps what it trains on the device (TrainingEngine::defer_attributes) until
@@ -379,7 +455,7 @@ TEST(CudaTrainingEngine, DeferredAttributesComeDownWhenFetched) {
   ASSERT_TRUE(backend.engine->holds(md));
   const float max_log_scale = std::log(0.045f);
   std::vector<uint8_t> flags;
-  ASSERT_TRUE(backend.engine->flag_oversized(md, max_log_scale, &flags));
+  ASSERT_TRUE(backend.engine->flag_prune(md, max_log_scale, 0, nullptr, nullptr, nullptr, &flags));
   ASSERT_EQ(flags.size(), n);
   size_t flagged = 0, differ = 0;
   for (size_t i = 0; i < n; ++i) {
@@ -389,7 +465,8 @@ TEST(CudaTrainingEngine, DeferredAttributesComeDownWhenFetched) {
   EXPECT_EQ(differ, 0u);
   EXPECT_GT(flagged, 0u);
   EXPECT_LT(flagged, n);
-  EXPECT_FALSE(eager->flag_oversized(md, max_log_scale, &flags)) << "it does not hold this map";
+  EXPECT_FALSE(eager->flag_prune(md, max_log_scale, 0, nullptr, nullptr, nullptr, &flags))
+      << "it does not hold this map";
 }
 
 TEST(CudaTrainingEngine, SettingsItDoesNotCoverStayOnTheHost) {

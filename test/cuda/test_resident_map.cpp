@@ -3,7 +3,7 @@
 // through rounds of what the trainer does between batches — removals (GaussianMap::remove_if and
 // GaussianAdam::remove_if on the host, remove_if on the device with the same mask), appends,
 // new stable flags and object IDs — and after each sync_up() every device array equals the
-// host's, bit for bit.
+// host's, bit for bit, having sent the flags whole only where the host changed them.
 
 #include <gtest/gtest.h>
 
@@ -111,11 +111,27 @@ TEST(ResidentMap, FollowsTheHostsRemovalsAppendsAndFlags) {
       size_t held = 0;
       for (size_t i = 0; i < before; ++i) held += remove[i] ? 0 : 1;
       randomise_state(&map, &adam, held, rng);
-      for (size_t i = 0; i < map.size(); ++i) map.stable()[i] = rng() % 3 == 0;
-      map.relabel(1, 3);  // an object merged into another
+      // Odd rounds leave the flags as they were: only the appended Gaussians' go up (the device
+      // compacted its own by the removal's plan).
+      const bool new_flags = round % 2 == 0;
+      if (new_flags) {
+        for (size_t i = 0; i < map.size(); ++i) map.stable()[i] = rng() % 3 == 0;
+        map.relabel(1, 3);  // an object merged into another
+      }
+      // What the device still holds after its removal: all it held but the removed, or (round 2,
+      // whose mask covers Gaussians it has not seen) the prefix it could keep in the host's order.
+      const size_t on_device = resident.count();
+      EXPECT_LE(on_device, held) << where;
       resident.sync_up(map, adam, stream);
       expect_same(resident, map, adam, stream, where);
       EXPECT_NE(map.size(), before) << where;
+      const size_t appended = map.size() - on_device;
+      EXPECT_EQ(resident.bytes_sent_last(),
+                appended * detail::ResidentMap::kBytesPerAppended + (new_flags ? map.size() : appended) * 5)
+          << where;
+      // Nothing changed since: nothing goes up.
+      resident.sync_up(map, adam, stream);
+      EXPECT_EQ(resident.bytes_sent_last(), 0u) << where;
     }
     // A map changed behind its back (smaller than what it holds): everything goes up again.
     gs::GaussianMap smaller = map.subset({0, 5, 7, 11});

@@ -357,7 +357,7 @@ TEST(Trainer, BudgetKeepsTheMostUsefulGaussians) {
 // the map, as the CUDA backend's pair does. Its training moves every Gaussian a fixed way a step
 // (x + 1e-3, every 7th's first log-scale + 0.25, confidence + 1): deterministic, so a trainer that
 // defers and one that does not must end with the same map to the bit, prunings of the grown ones
-// (on the held values: flag_oversized) and removals between fetches included.
+// (on the held values: flag_prune) and removals between fetches included.
 struct Shadow {
   bool defer_ok = false;  // the engine defers when asked
   bool deferring = false, pending = false, valid = false;
@@ -439,10 +439,15 @@ class ShadowEngine final : public TrainingEngine {
   bool defer_attributes(bool on) override { return s_->deferring = on && s_->defer_ok; }
   void fetch_attributes(GaussianMap* map) override { s_->fetch(map); }
   bool holds(const GaussianMap& map) const override { return s_->holds(map); }
-  bool flag_oversized(const GaussianMap& map, float max_log_scale, std::vector<uint8_t>* flags) override {
+  // The size test on its own values; the invisibility test on the caller's counters (it keeps none).
+  bool flag_prune(const GaussianMap& map, float max_log_scale, int max_invisible, float*, uint16_t* invisible,
+                  uint8_t*, std::vector<uint8_t>* flags) override {
     if (!s_->holds(map)) return false;
     flags->resize(s_->count);
-    for (size_t i = 0; i < s_->count; ++i) (*flags)[i] = oversized(&s_->attr[1][3 * i], max_log_scale);
+    for (size_t i = 0; i < s_->count; ++i) {
+      (*flags)[i] = (oversized(&s_->attr[1][3 * i], max_log_scale) ? 1 : 0) |
+                    (max_invisible > 0 && invisible[i] >= max_invisible ? 2 : 0);
+    }
     return true;
   }
   size_t device_bytes() const override { return 0; }

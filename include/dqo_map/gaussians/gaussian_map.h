@@ -98,6 +98,11 @@ class GaussianMap {
 
   // See MapRevision.
   uint64_t revision() const { return revision_.value(); }
+  // A stamp of the per-Gaussian flags the host sets (object IDs, stable flags): new whenever they
+  // may have changed other than by add() and remove_if() — a relabelling, or any use of the
+  // non-const stable() — so that a device copy sends them whole only then (and the appended
+  // Gaussians' otherwise). Reading them through a const map leaves it as it is.
+  uint64_t flags_revision() const { return flags_revision_.value(); }
 
   // Flat attribute arrays, index i at [i * width, (i + 1) * width).
   std::vector<float>& positions() { return position_; }            // 3 per Gaussian
@@ -107,7 +112,10 @@ class GaussianMap {
   std::vector<float>& opacities() { return opacity_; }             // 1, in (0, 1)
   std::vector<float>& colours() { return colour_; }                // 3, RGB
   std::vector<float>& confidences() { return confidence_; }        // 1
-  std::vector<uint8_t>& stable() { return stable_; }               // 1: frozen when non-zero
+  std::vector<uint8_t>& stable() {                                 // 1: frozen when non-zero
+    flags_revision_.bump();
+    return stable_;
+  }
   const std::vector<float>& positions() const { return position_; }
   const std::vector<float>& log_scales() const { return log_scale_; }
   const std::vector<float>& rotations() const { return rotation_; }
@@ -123,7 +131,7 @@ class GaussianMap {
   std::vector<float> position_, log_scale_, rotation_, opacity_, colour_, confidence_;
   std::vector<uint32_t> object_id_, birth_keyframe_;
   std::vector<uint8_t> type_, stable_;
-  MapRevision revision_;
+  MapRevision revision_, flags_revision_;
 };
 
 }  // namespace dqo::gs

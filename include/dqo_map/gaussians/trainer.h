@@ -237,6 +237,7 @@ class GaussianTrainer {
   // map_'s trained attributes from the engine where it holds newer ones (map() is const: the
   // values it shows do not change, only where they are kept).
   void fetch_attributes() const;
+  void fetch_counters();
   // Training and the masks: the normalised depth (normalise_depth); render(): the surface
   // depth where surface_depth is set.
   RenderSettings settings(uint32_t ins_object, bool for_render) const;
@@ -283,6 +284,9 @@ class GaussianTrainer {
   // The engine may hold newer trained attributes than map_'s (it defers them): fetched before
   // the host reads them (fetch_attributes()).
   mutable bool attributes_on_device_ = false;
+  // Likewise the review counters below (TrainingEngine::holds_review_counters): fetch_counters()
+  // before the host reads them. Removals and appends keep both copies in step meanwhile.
+  bool counters_on_device_ = false;
   GaussianAdam adam_;
   // Per Gaussian, in step with map_.
   std::vector<uint16_t> invisible_count_;

@@ -77,9 +77,11 @@ class TrainingEngine {
   // sync()): one pass of `view` with settings, its colour gradient under the probe
   // dL/d(rgb) = (1, [label = 0], [label != 0]) summed per Gaussian, then math/review.h's step for
   // every Gaussian with `rv`'s pose and intrinsics (its image pointers are the host's and not
-  // read), `rs`, and the trainer's counters [map.size()], updated in place. Returns false where it
-  // does not review (the trainer's own loop then runs); true with `relabels` (index, new ID),
-  // ascending. Throws OutOfDeviceMemory when the device is full (the counters are then as before).
+  // read), `rs`, and the trainer's counters [map.size()], updated in place — or in the engine's
+  // own copy (holds_review_counters()). A relabelled Gaussian's votes start over. Returns false
+  // where it does not review (the trainer's own loop then runs); true with `relabels` (index, new
+  // ID), ascending. Throws OutOfDeviceMemory when the device is full (the counters are then as
+  // before).
   virtual bool review(const GaussianMap& map, const TrainingView& view, const RenderSettings& settings,
                       const ReviewView& rv, const ReviewSettings& rs, float* usefulness, uint16_t* invisible,
                       uint8_t* votes, std::vector<std::pair<uint32_t, uint32_t>>* relabels) {
@@ -105,12 +107,27 @@ class TrainingEngine {
     (void)map;
     return false;
   }
-  // Where it holds `map`: flags[i] = 1 where Gaussian i's largest log-scale exceeds
-  // max_log_scale (the pruning's oversized test, on the values it holds), else 0; true. False
-  // where it does not hold `map` (the caller tests its own values).
-  virtual bool flag_oversized(const GaussianMap& map, float max_log_scale, std::vector<uint8_t>* flags) {
-    (void)map, (void)max_log_scale, (void)flags;
+  // The pruning's tests where it holds `map`, on the values it holds: flags[i] bit 0 where
+  // Gaussian i's largest log-scale exceeds max_log_scale (math/prune.h), bit 1 where its count of
+  // keyframes it gave almost nothing reaches max_invisible (> 0; 0: not tested) — the count of
+  // the review counters it keeps, or of `invisible` [map.size()] where it keeps none (it may take
+  // the caller's counters then, as review() does). True; false where it cannot (the caller tests
+  // its own values).
+  virtual bool flag_prune(const GaussianMap& map, float max_log_scale, int max_invisible, float* usefulness,
+                          uint16_t* invisible, uint8_t* votes, std::vector<uint8_t>* flags) {
+    (void)map, (void)max_log_scale, (void)max_invisible, (void)usefulness, (void)invisible, (void)votes;
+    (void)flags;
     return false;
+  }
+  // Review counters kept: with deferred attributes, review() and flag_prune() may keep the
+  // counters they were given on the device from call to call (the caller's arrays are then stale;
+  // the engine applies appends and removals to its own). Whether it keeps them now; and they
+  // brought into the caller's arrays [map size] and handed back (the next call takes the
+  // caller's again). A device failure that drops the map drops them too: the caller's last
+  // fetched counters stand (they only steer pruning and relabelling).
+  virtual bool holds_review_counters() const { return false; }
+  virtual void fetch_review_counters(float* usefulness, uint16_t* invisible, uint8_t* votes) {
+    (void)usefulness, (void)invisible, (void)votes;
   }
   // Writes the optimiser state it holds into *adam (sized for the map); nothing if it holds none.
   virtual void fetch_optimiser_state(GaussianAdam* adam) { (void)adam; }
