@@ -35,23 +35,31 @@ __device__ __forceinline__ void reduce_scatter_step(float* v, int lane, int bit)
   }
 }
 
-// The warp's sums of the ten Grad2D values into `dst` (one Gaussian's): a reduce-scatter (16
-// shuffles, against 50 for ten separate tree sums) that leaves component c's total in lanes 2c and
-// 2c + 1, so ten lanes add their component at once instead of one lane adding ten in turn.
+// The warp's sums of the ten Grad2D values into `dst` (one Gaussian's): a reduce-scatter that
+// halves the values a lane holds at each step (10 → 5 → 3 → 2 → 1, an odd count padded with a
+// zero), 12 shuffles against 50 for ten separate tree sums (and 16 when padded to 16 at the
+// start). Lane pair (2k, 2k + 1) ends with the total of component
+// 5·b16 + 3·b8 + 2·b4 + b2 (its lane bits), a padding slot for 6 of the 16 pairs; ten lanes add
+// their component at once instead of one lane adding ten in turn.
 __device__ __forceinline__ void warp_add_grad2d(const Grad2D& g, float* dst) {
   static_assert(sizeof(Grad2D) == 10 * sizeof(float), "Grad2D is ten floats");
   const int lane = static_cast<int>(threadIdx.x % 32);
-  float v[16];
+  float v[10];
   const float* gf = reinterpret_cast<const float*>(&g);
 #pragma unroll
-  for (int c = 0; c < 16; ++c) v[c] = c < 10 ? gf[c] : 0.f;
-  reduce_scatter_step<8>(v, lane, 16);
-  reduce_scatter_step<4>(v, lane, 8);
+  for (int c = 0; c < 10; ++c) v[c] = gf[c];
+  reduce_scatter_step<5>(v, lane, 16);  // components 0-4 or 5-9
+  v[5] = 0.f;
+  reduce_scatter_step<3>(v, lane, 8);  // 0-2 or 3-4 (and padding)
+  v[3] = 0.f;
   reduce_scatter_step<2>(v, lane, 4);
   reduce_scatter_step<1>(v, lane, 2);
   v[0] += __shfl_xor_sync(kFull, v[0], 1);
-  const int c = (lane >> 1) & 15;
-  if ((lane & 1) == 0 && c < 10 && v[0] != 0.f) atomicAdd(dst + c, v[0]);
+  const int b16 = (lane >> 4) & 1, b8 = (lane >> 3) & 1, b4 = (lane >> 2) & 1, b2 = (lane >> 1) & 1;
+  const int within = 2 * b4 + b2;  // of the three (b8 = 0) or two (b8 = 1) kept at the second step
+  const bool real = within < (b8 ? 2 : 3);
+  const int c = 5 * b16 + 3 * b8 + within;
+  if ((lane & 1) == 0 && real && v[0] != 0.f) atomicAdd(dst + c, v[0]);
 }
 
 __global__ void __launch_bounds__(kThreads)

@@ -2,11 +2,12 @@
 // then each tile's range of the sorted list. A tile's Gaussians come out in depth order with ties by
 // index, as the CPU reference orders them (src/gaussians/raster_binning.cpp): depths are positive
 // floats, whose bits sort as unsigned integers, and the sort is stable over pairs written in index
-// order.
+// order. The depth takes 28 bits of the key, not 32 (DepthKey): one radix pass fewer.
 
 #include <cub/cub.cuh>
 
 #include <algorithm>
+#include <cstring>
 
 #include "raster_cuda.h"
 
@@ -15,7 +16,7 @@ namespace dqo::cuda::detail {
 namespace {
 
 __global__ void emit_keys_kernel(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
-                                 int width, int height, uint64_t* keys, uint32_t* values) {
+                                 int width, int height, DepthKey dk, uint64_t* keys, uint32_t* values) {
   const int tiles_x = (width + kTileSize - 1) / kTileSize;
   const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i >= n) return;
@@ -23,24 +24,26 @@ __global__ void emit_keys_kernel(size_t n, const DeviceSplat* splats, const Tile
   if (begin == end) return;
   const TileRect t = rects[i];
   const DeviceSplat s = splats[i];
-  const uint64_t depth_bits = __float_as_uint(s.depth);
+  const uint32_t bits = __float_as_uint(s.depth);
+  const uint64_t depth_bits = min(static_cast<uint64_t>(bits > dk.base ? bits - dk.base : 0u), dk.max);
   uint32_t k = begin;
   for (int ty = t.y0; ty <= t.y1 && k < end; ++ty) {
     for (int tx = t.x0; tx <= t.x1 && k < end; ++tx) {
       if (!tile_reached(s, tx, ty, width, height)) continue;
-      keys[k] = (static_cast<uint64_t>(ty * tiles_x + tx) << 32) | depth_bits;
+      keys[k] = (static_cast<uint64_t>(ty * tiles_x + tx) << dk.bits) | depth_bits;
       values[k] = static_cast<uint32_t>(i);
       ++k;
     }
   }
 }
 
-__global__ void tile_ranges_kernel(size_t pairs, const uint64_t* keys, uint2* ranges) {
+__global__ void tile_ranges_kernel(size_t pairs, const uint64_t* keys, int depth_bits, uint2* ranges) {
   const size_t k = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (k >= pairs) return;
-  const uint32_t tile = static_cast<uint32_t>(keys[k] >> 32);
-  if (k == 0 || static_cast<uint32_t>(keys[k - 1] >> 32) != tile) ranges[tile].x = static_cast<uint32_t>(k);
-  if (k + 1 == pairs || static_cast<uint32_t>(keys[k + 1] >> 32) != tile) ranges[tile].y = static_cast<uint32_t>(k + 1);
+  const uint32_t tile = static_cast<uint32_t>(keys[k] >> depth_bits);
+  if (k == 0 || static_cast<uint32_t>(keys[k - 1] >> depth_bits) != tile) ranges[tile].x = static_cast<uint32_t>(k);
+  if (k + 1 == pairs || static_cast<uint32_t>(keys[k + 1] >> depth_bits) != tile)
+    ranges[tile].y = static_cast<uint32_t>(k + 1);
 }
 
 __global__ void tile_work_kernel(size_t tiles, const uint2* ranges, uint32_t* keys, uint32_t* ids) {
@@ -76,20 +79,29 @@ cudaError_t exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offse
   return cub::DeviceScan::ExclusiveSum(*temp, bytes, tile_count, offsets, static_cast<int>(n + 1), stream);
 }
 
+DepthKey depth_key_for(float near) {
+  // Below ~1e-30 m there is no bound worth shifting by: the float's bits as they are.
+  if (!(near >= 1e-30f)) return DepthKey{0u, 32, 0xffffffffull};
+  uint32_t bits;
+  std::memcpy(&bits, &near, sizeof bits);
+  return DepthKey{bits & 0xff800000u, 28, (uint64_t{1} << 28) - 1};
+}
+
 void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
-                      int width, int height, uint64_t* keys, uint32_t* values, cudaStream_t stream) {
+                      int width, int height, const DepthKey& dk, uint64_t* keys, uint32_t* values,
+                      cudaStream_t stream) {
   if (n == 0) return;
   constexpr int kBlock = 256;
   emit_keys_kernel<<<static_cast<unsigned>((n + kBlock - 1) / kBlock), kBlock, 0, stream>>>(
-      n, splats, rects, offsets, width, height, keys, values);
+      n, splats, rects, offsets, width, height, dk, keys, values);
 }
 
-cudaError_t sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out,
+cudaError_t sort_pairs(size_t pairs, int key_bits, const uint64_t* keys_in, uint64_t* keys_out,
                        const uint32_t* values_in, uint32_t* values_out, void** temp, size_t* temp_bytes,
                        cudaStream_t stream) {
   if (pairs == 0) return cudaSuccess;
-  // Only the bits in use: 32 of depth and as many of tile as there are tiles.
-  const int end_bit = 32 + tile_bits;
+  // Only the bits in use: the depth's and as many of tile as there are tiles.
+  const int end_bit = key_bits;
   size_t bytes = 0;
   cudaError_t err = cub::DeviceRadixSort::SortPairs(nullptr, bytes, keys_in, keys_out, values_in, values_out,
                                                     static_cast<int>(pairs), 0, end_bit, stream);
@@ -115,11 +127,12 @@ cudaError_t order_tiles(size_t tiles, const uint2* ranges, uint32_t* keys, uint3
                                                    stream);
 }
 
-void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, uint2* ranges, cudaStream_t stream) {
+void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, int depth_bits, uint2* ranges,
+                        cudaStream_t stream) {
   if (pairs == 0) return;
   constexpr int kBlock = 256;
   tile_ranges_kernel<<<static_cast<unsigned>((pairs + kBlock - 1) / kBlock), kBlock, 0, stream>>>(
-      pairs, sorted_keys, ranges);
+      pairs, sorted_keys, depth_bits, ranges);
 }
 
 }  // namespace dqo::cuda::detail

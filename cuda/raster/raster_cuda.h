@@ -143,18 +143,32 @@ struct ForwardImages {
 void launch_project(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t ins_object, bool ins_per_label,
                     DeviceSplat* splats, TileRect* rects, uint32_t* tile_count, Grad2D* zero_grad2d,
                     cudaStream_t stream);
-// Stage 2: one (tile << 32 | depth bits, index) pair per Gaussian and tile it touches, written at
-// offsets[i] (the exclusive scan of tile_count), then (after the sort) each tile's range.
+// A pair's depth key: the depth's float bits less `base` (those of the largest power of two not
+// above the near plane, below which nothing is binned), capped at `max`, in the key's low `bits`.
+// Positive floats' bits sort as unsigned integers, so 28 bits above the base order 32 octaves of
+// depth exactly (near 0.01 m: up to 33 000 km; farther ones tie, by index) — with 12 bits of tile
+// a 40-bit key, 5 radix passes of 8 bits instead of the 6 of the float's whole 32.
+struct DepthKey {
+  uint32_t base;
+  int bits;
+  uint64_t max;
+};
+DepthKey depth_key_for(float near);
+// Stage 2: one (tile << dk.bits | depth key, index) pair per Gaussian and tile it touches, written
+// at offsets[i] (the exclusive scan of tile_count), then (after the sort) each tile's range.
 void launch_emit_keys(size_t n, const DeviceSplat* splats, const TileRect* rects, const uint32_t* offsets,
-                      int width, int height, uint64_t* keys, uint32_t* values, cudaStream_t stream);
-// Sorts the pairs by key (CUB radix sort; stable, so ties keep the index order), into *_out;
-// `temp` grows as needed. Returns the first error (an allocation's included).
-cudaError_t sort_pairs(size_t pairs, int tile_bits, const uint64_t* keys_in, uint64_t* keys_out, const uint32_t* values_in,
+                      int width, int height, const DepthKey& dk, uint64_t* keys, uint32_t* values,
+                      cudaStream_t stream);
+// Sorts the pairs by the low key_bits of their keys (CUB radix sort; stable, so ties keep the
+// index order), into *_out; `temp` grows as needed. Returns the first error (an allocation's
+// included).
+cudaError_t sort_pairs(size_t pairs, int key_bits, const uint64_t* keys_in, uint64_t* keys_out, const uint32_t* values_in,
                        uint32_t* values_out, void** temp, size_t* temp_bytes, cudaStream_t stream);
 // Exclusive scan of tile_count into offsets ([n + 1]: the last is the total); as sort_pairs.
 cudaError_t exclusive_scan(size_t n, const uint32_t* tile_count, uint32_t* offsets, void** temp,
                            size_t* temp_bytes, cudaStream_t stream);
-void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, uint2* ranges, cudaStream_t stream);
+void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, int depth_bits, uint2* ranges,
+                        cudaStream_t stream);
 // The tiles, most pairs first (ties in index order), into tile_order: the compositing kernels take
 // their blocks' tiles in this order, so the longest lists start first and the last wave on the
 // SMs holds short ones (Nsight Compute: a third of the forward kernel's SM time was idle in the

@@ -81,14 +81,16 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
   uint32_t* values = values_.ensure(pairs, "values");
   uint64_t* sorted_keys = sorted_keys_.ensure(pairs, "sorted keys");
   uint32_t* sorted_ids = sorted_ids_.ensure(pairs, "sorted IDs");
-  launch_emit_keys(n, splats, rects, offsets, width, height, keys, values, stream_);
+  const DepthKey dk = depth_key_for(cam.near);
+  launch_emit_keys(n, splats, rects, offsets, width, height, dk, keys, values, stream_);
   int tile_bits = 1;
   while ((size_t{1} << tile_bits) < tiles) ++tile_bits;
-  check(sort_pairs(pairs, tile_bits, keys, sorted_keys, values, sorted_ids, &sort_temp_, &sort_temp_bytes_, stream_),
+  check(sort_pairs(pairs, dk.bits + tile_bits, keys, sorted_keys, values, sorted_ids, &sort_temp_, &sort_temp_bytes_,
+                   stream_),
         "sort");
   uint2* ranges = ranges_.ensure(tiles, "tile ranges");
   check(cudaMemsetAsync(ranges, 0, tiles * sizeof(uint2), stream_), "tile ranges");
-  launch_tile_ranges(pairs, sorted_keys, ranges, stream_);
+  launch_tile_ranges(pairs, sorted_keys, dk.bits, ranges, stream_);
   uint32_t* tile_order = tile_order_.ensure(tiles, "tile order");
   check(order_tiles(tiles, ranges, tile_work_.ensure(tiles, "tile work"), tile_ids_.ensure(tiles, "tile work"),
                     sorted_tile_work_.ensure(tiles, "tile work"), tile_order, &sort_temp_, &sort_temp_bytes_,
