@@ -267,12 +267,8 @@ void ResidentMap::download_optimiser(gs::GaussianAdam* adam, cudaStream_t stream
 
 ResidentMap::HostCopy ResidentMap::download_all(cudaStream_t stream) const {
   HostCopy h;
+  static_cast<Trained&>(h) = download_trained(stream);
   const size_t n = valid_ ? count_ : 0;
-  fetch(&h.position, position_.get(), 3 * n, stream);
-  fetch(&h.log_scale, log_scale_.get(), 3 * n, stream);
-  fetch(&h.rotation, rotation_.get(), 4 * n, stream);
-  fetch(&h.colour, colour_.get(), 3 * n, stream);
-  fetch(&h.confidence, confidence_.get(), n, stream);
   fetch(&h.opacity, opacity_.get(), n, stream);
   const size_t width[4] = {3, 3, 4, 3};
   for (int a = 0; a < 4; ++a) {

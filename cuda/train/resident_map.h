@@ -77,14 +77,15 @@ class ResidentMap {
   // a reader on another stream.
   void wait() const;
 
+  // The trained attributes as host arrays.
+  struct Trained {
+    std::vector<float> position, log_scale, rotation, colour, confidence;
+  };
   // The trained attributes of the count() Gaussians held into the first count() of `map` (those
   // appended since keep theirs); asynchronous: the caller waits on the stream before reading them.
   void download_trained(gs::GaussianMap* map, cudaStream_t stream) const;
   // The same into arrays of their own (waits for the stream): what a caller about to lose the
   // device's copy keeps.
-  struct Trained {
-    std::vector<float> position, log_scale, rotation, colour, confidence;
-  };
   Trained download_trained(cudaStream_t stream) const;
   // The pruning's flags of the held Gaussians (flags: count() bytes on the device; asynchronous):
   // kPruneOversized by max_log_scale, kPruneInvisible by the held counters and max_invisible (> 0,
@@ -109,8 +110,8 @@ class ResidentMap {
   // at least as many; those appended since keep theirs); asynchronous likewise.
   void download_optimiser(gs::GaussianAdam* adam, cudaStream_t stream) const;
   // Every array as it is on the device (waits for the stream), for tests.
-  struct HostCopy {
-    std::vector<float> position, log_scale, rotation, colour, confidence, opacity;
+  struct HostCopy : Trained {
+    std::vector<float> opacity;
     std::vector<float> m[4], v[4];
     std::vector<uint32_t> steps, object_id;
     std::vector<uint8_t> stable, type;

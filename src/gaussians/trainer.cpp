@@ -321,23 +321,8 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
   const bool check_usefulness = params_.max_gaussians > 0;
   if (!check_visibility && !check_labels && !check_usefulness) return;
   const SE3 T_cw = kf.T_wc.inverse();
-  ReviewView view;
-  const Eigen::Matrix3d R = T_cw.rotation();
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) view.R[r][c] = static_cast<float>(R(r, c));
-    view.t[r] = static_cast<float>(T_cw.translation()[r]);
-  }
-  view.fx = kf.camera.fx, view.fy = kf.camera.fy, view.cx = kf.camera.cx, view.cy = kf.camera.cy;
-  view.width = kf.camera.width, view.height = kf.camera.height;
-  view.depth = kf.depth.data.data();
-  view.labels = kf.labels.data.data();
-  ReviewSettings rs{};
-  rs.min_depth = params_.min_depth;
-  rs.depth_error = params_.depth_error;
-  rs.min_contribution = params_.min_contribution;
-  rs.relabel_fraction = params_.relabel_fraction;
-  rs.budget_decay = params_.budget_decay;
-  rs.relabel_keyframes = params_.relabel_keyframes;
+  const ReviewView view = review_view_of(kf.camera, T_cw, kf.depth, kf.labels);
+  ReviewSettings rs = params_.review_settings();
   rs.check_visibility = check_visibility;
   rs.check_labels = check_labels;
   // Where the engine holds the map, on its device: no probe up, no gradients down, no loop here.

@@ -219,15 +219,7 @@ TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
   ASSERT_TRUE(backend.engine->defer_attributes(true));
   auto cpu = gs::make_cpu_rasteriser(0);
   const gs::GaussianTrainer::Params p;
-  gs::ReviewSettings rs{};
-  rs.min_depth = p.min_depth;
-  rs.depth_error = p.depth_error;
-  rs.min_contribution = p.min_contribution;
-  rs.relabel_fraction = p.relabel_fraction;
-  rs.budget_decay = p.budget_decay;
-  rs.relabel_keyframes = p.relabel_keyframes;
-  rs.check_visibility = true;
-  rs.check_labels = true;
+  const gs::ReviewSettings rs = p.review_settings();
   gs::RenderSettings settings;
   settings.normalise_depth = p.normalise_depth;
   const float inf = std::numeric_limits<float>::infinity();
@@ -275,16 +267,7 @@ TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
     adam.resize_for(map);
     const gs::TrainingKeyframe kf = keyframe(truth, k % 4);
     const SE3 T_cw = kf.T_wc.inverse();
-    gs::ReviewView view;
-    const Eigen::Matrix3d R = T_cw.rotation();
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) view.R[r][c] = static_cast<float>(R(r, c));
-      view.t[r] = static_cast<float>(T_cw.translation()[r]);
-    }
-    view.fx = kf.camera.fx, view.fy = kf.camera.fy, view.cx = kf.camera.cx, view.cy = kf.camera.cy;
-    view.width = kf.camera.width, view.height = kf.camera.height;
-    view.depth = kf.depth.data.data();
-    view.labels = kf.labels.data.data();
+    const gs::ReviewView view = gs::review_view_of(kf.camera, T_cw, kf.depth, kf.labels);
     // Host: the probe's colour sums from the CPU rasteriser, then the loop (a relabelled
     // Gaussian's votes start over, as the trainer's relabelling does).
     gs::RenderOutput out;

@@ -166,6 +166,20 @@ class GaussianTrainer {
     float budget_object_weight = 10.f;
 
     uint64_t seed = 1;
+
+    // The review's settings (math/review.h) from these, both checks on.
+    ReviewSettings review_settings() const {
+      ReviewSettings rs{};
+      rs.min_depth = min_depth;
+      rs.depth_error = depth_error;
+      rs.min_contribution = min_contribution;
+      rs.relabel_fraction = relabel_fraction;
+      rs.budget_decay = budget_decay;
+      rs.relabel_keyframes = relabel_keyframes;
+      rs.check_visibility = true;
+      rs.check_labels = true;
+      return rs;
+    }
   };
 
   // rasteriser null: the CPU one on all cores. engine: where the iterations run (the GPU's,

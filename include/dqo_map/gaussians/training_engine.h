@@ -24,6 +24,23 @@
 
 namespace dqo::gs {
 
+// The review's view (math/review.h) of a keyframe: its pose (world to camera), intrinsics and
+// images, as floats.
+inline ReviewView review_view_of(const PinholeCamera& camera, const SE3& T_cw, const DepthImage& depth,
+                                 const LabelImage& labels) {
+  ReviewView view;
+  const Eigen::Matrix3d R = T_cw.rotation();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) view.R[r][c] = static_cast<float>(R(r, c));
+    view.t[r] = static_cast<float>(T_cw.translation()[r]);
+  }
+  view.fx = camera.fx, view.fy = camera.fy, view.cx = camera.cx, view.cy = camera.cy;
+  view.width = camera.width, view.height = camera.height;
+  view.depth = depth.data.data();
+  view.labels = labels.data.data();
+  return view;
+}
+
 // One keyframe of the window. `key` names its images: the same key, the same images (an engine
 // may keep them from batch to batch); the trainer gives a keyframe a new key when its labels change.
 struct TrainingView {
