@@ -241,5 +241,36 @@ TEST(GaussianMap, RevisionChangesWithEveryStructuralEdit) {
   EXPECT_NE(map.revision(), moved.revision());
 }
 
+// The flags' stamp (a device copy sends the stable flags and object IDs whole only when it moved):
+// new on a relabelling that changes something and on any use of the non-const stable(); kept by
+// appends, removals, reads through a const map and no-op relabellings.
+TEST(GaussianMap, FlagsRevisionChangesWhenFlagsMayHave) {
+  GaussianMap map;
+  GaussianInit g;
+  g.object_id = 2;
+  map.add(g);
+  map.add(g);
+  map.add(g);
+  const uint64_t start = map.flags_revision();
+  map.add(g);
+  EXPECT_EQ(map.remove_if({0, 1, 0, 0}), 1u);
+  EXPECT_EQ(map.flags_revision(), start) << "appends and removals: the device follows them itself";
+  const GaussianMap& view = map;
+  EXPECT_EQ(view.stable().size(), 3u);
+  EXPECT_EQ(map.relabel(7, 8), 0u);
+  EXPECT_EQ(map.relabel_each({{0, 2}}), 0u);
+  EXPECT_EQ(map.flags_revision(), start) << "reads and relabellings that change nothing";
+  EXPECT_EQ(map.relabel_each({{0, 5}}), 1u);
+  const uint64_t relabelled = map.flags_revision();
+  EXPECT_NE(relabelled, start);
+  EXPECT_EQ(map.relabel(2, 3), 2u);
+  EXPECT_NE(map.flags_revision(), relabelled);
+  const uint64_t before_stable = map.flags_revision();
+  map.stable()[1] = 1;
+  EXPECT_NE(map.flags_revision(), before_stable) << "the non-const stable() may write";
+  const GaussianMap copy = map;
+  EXPECT_NE(copy.flags_revision(), map.flags_revision()) << "another map";
+}
+
 }  // namespace
 }  // namespace dqo::gs
