@@ -77,8 +77,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
           resident_->download_trained(map, pipe_.stream());
           check(cudaStreamSynchronize(pipe_.stream()), "deferred attributes");
         } catch (const std::exception& e) {
-          std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost (%s)\n",
-                       e.what());
+          report_lost(e.what());
         }
         pending_ = false;
       }
@@ -100,19 +99,15 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
         try {
           detail::ResidentMap::Trained t = resident_->download_trained(pipe_.stream());
           const gs::RemovalPlan plan = gs::plan_removal(remove);
-          gs::apply_removal(&t.position, 3, plan);
-          gs::apply_removal(&t.log_scale, 3, plan);
-          gs::apply_removal(&t.rotation, 4, plan);
-          gs::apply_removal(&t.colour, 3, plan);
-          gs::apply_removal(&t.confidence, 1, plan);
+          const auto arrays = t.arrays();
+          for (size_t k = 0; k < arrays.size(); ++k)
+            gs::apply_removal(arrays[k], detail::ResidentMap::kTrainedWidths[k], plan);
           rescued_ = std::make_unique<detail::ResidentMap::Trained>(std::move(t));
         } catch (const std::exception& e2) {
-          std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost (%s)\n",
-                       e2.what());
+          report_lost(e2.what());
         }
       } else if (pending_) {
-        std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost (%s)\n",
-                     e.what());
+        report_lost(e.what());
       }
       pending_ = false;
       resident_->invalidate();
@@ -131,7 +126,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       // Out of memory leaves what is held valid (sync_up allocates first): the caller fetches
       // deferred attributes from it (holds() is false). Only a failing device loses the copy.
       if (!resident_->valid() && pending_) {
-        std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost\n");
+        report_lost("the device's copy was dropped");
         pending_ = false;
       }
     }
@@ -141,15 +136,12 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     return defer_;
   }
   void fetch_attributes(gs::GaussianMap* map) override {
-    if (rescued_) {
-      const detail::ResidentMap::Trained& t = *rescued_;
-      const size_t n = t.confidence.size();
-      if (map->size() < n) throw std::logic_error("CUDA training engine: the map is smaller than the rescued one");
-      std::copy(t.position.begin(), t.position.end(), map->positions().begin());
-      std::copy(t.log_scale.begin(), t.log_scale.end(), map->log_scales().begin());
-      std::copy(t.rotation.begin(), t.rotation.end(), map->rotations().begin());
-      std::copy(t.colour.begin(), t.colour.end(), map->colours().begin());
-      std::copy(t.confidence.begin(), t.confidence.end(), map->confidences().begin());
+    if (rescued_) {  // into the map's first Gaussians, those the rescued arrays hold
+      if (map->size() < rescued_->confidence.size())
+        throw std::logic_error("CUDA training engine: the map is smaller than the rescued one");
+      const auto from = rescued_->arrays();
+      const auto into = detail::ResidentMap::trained_arrays(map);
+      for (size_t k = 0; k < from.size(); ++k) std::copy(from[k]->begin(), from[k]->end(), into[k]->begin());
       rescued_.reset();
       return;
     }
@@ -274,6 +266,10 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   }
 
  private:
+  static void report_lost(const char* why) {
+    std::fprintf(stderr, "CUDA training engine: the trained attributes since the last fetch are lost (%s)\n", why);
+  }
+
   std::vector<double> run_resident(const std::vector<gs::TrainingView>& views,
                                    const std::vector<gs::TrainingStep>& steps, const gs::TrainingLoss& loss,
                                    gs::GaussianMap* map, gs::GaussianAdam* adam) {

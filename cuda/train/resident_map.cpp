@@ -49,10 +49,10 @@ void ResidentMap::sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& ad
   confidence_.reserve(n, from, "map", stream);
   opacity_.reserve(n, from, "map", stream);
   type_.reserve(n, from, "map", stream);
-  const size_t widths[4] = {3, 3, 4, 3};
+  const size_t width[4] = {3, 3, 4, 3};  // the moments': position, log-scale, rotation, colour
   for (int a = 0; a < 4; ++a) {
-    m_[a].reserve(widths[a] * n, widths[a] * from, "Adam moments", stream);
-    v_[a].reserve(widths[a] * n, widths[a] * from, "Adam moments", stream);
+    m_[a].reserve(width[a] * n, width[a] * from, "Adam moments", stream);
+    v_[a].reserve(width[a] * n, width[a] * from, "Adam moments", stream);
   }
   steps_.reserve(n, from, "Adam steps", stream);
   stable_.reserve(n, from, "stable flags", stream);
@@ -73,7 +73,6 @@ void ResidentMap::sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& ad
   send_tail(&opacity_, map.opacities(), from, n, 1, "opacities", stream);
   send_tail(&type_, map.types(), from, n, 1, "types", stream);
   const gs::GaussianAdam::Moments* moments[4] = {&st.position, &st.log_scale, &st.rotation, &st.colour};
-  const size_t width[4] = {3, 3, 4, 3};
   // Moments the host does not keep (GaussianAdam::keep_moments_on_host) start at zero here.
   auto moments_tail = [&](GrowingBuffer<float>* buf, const std::vector<float>& host, size_t w) {
     if (!host.empty() || adam.moments_on_host()) {
@@ -181,26 +180,24 @@ void ResidentMap::download_trained(gs::GaussianMap* map, cudaStream_t stream) co
   const size_t n = count_;
   if (!valid_ || map->size() < n) throw std::logic_error("resident map: the host map is not the one held");
   // Into the first n (the host may have appended since; those keep the host's values).
-  auto into = [&](std::vector<float>* host, const float* device, size_t width) {
-    if (host->size() != width * map->size()) throw std::logic_error("resident map: a host array is not sized for its map");
-    if (n) check(cudaMemcpyAsync(host->data(), device, width * n * sizeof(float), cudaMemcpyDeviceToHost, stream),
-                 "resident map");
-  };
-  into(&map->positions(), position_.get(), 3);
-  into(&map->log_scales(), log_scale_.get(), 3);
-  into(&map->rotations(), rotation_.get(), 4);
-  into(&map->colours(), colour_.get(), 3);
-  into(&map->confidences(), confidence_.get(), 1);
+  const auto host = trained_arrays(map);
+  const auto device = trained_device();
+  for (size_t k = 0; k < host.size(); ++k) {
+    const size_t width = kTrainedWidths[k];
+    if (host[k]->size() != width * map->size())
+      throw std::logic_error("resident map: a host array is not sized for its map");
+    if (n)
+      check(cudaMemcpyAsync(host[k]->data(), device[k], width * n * sizeof(float), cudaMemcpyDeviceToHost, stream),
+            "resident map");
+  }
 }
 
 ResidentMap::Trained ResidentMap::download_trained(cudaStream_t stream) const {
   Trained t;
   const size_t n = valid_ ? count_ : 0;
-  fetch(&t.position, position_.get(), 3 * n, stream);
-  fetch(&t.log_scale, log_scale_.get(), 3 * n, stream);
-  fetch(&t.rotation, rotation_.get(), 4 * n, stream);
-  fetch(&t.colour, colour_.get(), 3 * n, stream);
-  fetch(&t.confidence, confidence_.get(), n, stream);
+  const auto host = t.arrays();
+  const auto device = trained_device();
+  for (size_t k = 0; k < host.size(); ++k) fetch(host[k], device[k], kTrainedWidths[k] * n, stream);
   check(cudaStreamSynchronize(stream), "resident map");
   return t;
 }

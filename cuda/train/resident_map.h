@@ -16,6 +16,7 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -80,7 +81,14 @@ class ResidentMap {
   // The trained attributes as host arrays.
   struct Trained {
     std::vector<float> position, log_scale, rotation, colour, confidence;
+    // The five in this order, kTrainedWidths[k] values a Gaussian each (trained_arrays()'s order).
+    std::array<std::vector<float>*, 5> arrays() { return {&position, &log_scale, &rotation, &colour, &confidence}; }
   };
+  static constexpr size_t kTrainedWidths[5] = {3, 3, 4, 3, 1};
+  // A map's arrays of the trained attributes, in Trained's order.
+  static std::array<std::vector<float>*, 5> trained_arrays(gs::GaussianMap* map) {
+    return {&map->positions(), &map->log_scales(), &map->rotations(), &map->colours(), &map->confidences()};
+  }
   // The trained attributes of the count() Gaussians held into the first count() of `map` (those
   // appended since keep theirs); asynchronous: the caller waits on the stream before reading them.
   void download_trained(gs::GaussianMap* map, cudaStream_t stream) const;
@@ -130,6 +138,11 @@ class ResidentMap {
   size_t bytes() const;
 
  private:
+  // The device's arrays of the trained attributes, in Trained's order.
+  std::array<const float*, 5> trained_device() const {
+    return {position_.get(), log_scale_.get(), rotation_.get(), colour_.get(), confidence_.get()};
+  }
+
   bool valid_ = false;
   size_t count_ = 0;
   const gs::GaussianMap* synced_map_ = nullptr;  // the map and revision of the latest sync_up()
