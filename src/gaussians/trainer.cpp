@@ -751,9 +751,10 @@ size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
   const size_t removed =
       static_cast<size_t>(std::count_if(remove.begin(), remove.end(), [](uint8_t r) { return r != 0; }));
   if (removed == 0) return 0;
-  // Deferred attributes: the engine holds every Gaussian first (the appended ones sent), so that
-  // its removal runs in full there and keeps what it trained.
-  if (attributes_on_device_ && !engine_->holds(map_)) sync_engine();
+  // Deferred attributes or kept counters: the engine holds every Gaussian first (the appended
+  // ones sent), so that its removal runs in full there and keeps what it trained and counted (a
+  // fetch by map() leaves the counters there).
+  if ((attributes_on_device_ || counters_on_device_) && !engine_->holds(map_)) sync_engine();
   // The map's arrays, the optimiser's step counts, the trainer's own and the engine's copy at
   // once, each by the same plan (removal_plan.h: a pass over the mask, then as many moves as
   // removals).
