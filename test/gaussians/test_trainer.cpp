@@ -366,6 +366,7 @@ struct Shadow {
   uint64_t revision = 0;
   std::vector<float> attr[5];  // position, log-scale, rotation, colour, confidence
   int fetches = 0, removals_pending = 0;
+  int fail = 0;  // the next `fail` batches run out of device memory
 
   static std::vector<float>* host(GaussianMap* m, int a) {
     std::vector<float>* h[5] = {&m->positions(), &m->log_scales(), &m->rotations(), &m->colours(), &m->confidences()};
@@ -404,6 +405,13 @@ class ShadowEngine final : public TrainingEngine {
   std::vector<double> run(const std::vector<TrainingView>&, const std::vector<TrainingStep>& steps,
                           const TrainingLoss&, GaussianMap* map, GaussianAdam* adam) override {
     adam->resize_for(*map);
+    if (s_->fail > 0) {  // as the CUDA engine fails: deferred attributes down, then the copy dropped
+      --s_->fail;
+      s_->fetch(map);
+      s_->valid = false, s_->pending = false;
+      for (auto& a : s_->attr) a.clear();
+      throw OutOfDeviceMemory("CUDA: gradients: out of memory");
+    }
     s_->sync(*map);
     for (size_t k = 0; k < steps.size(); ++k) {
       for (size_t i = 0; i < s_->count; ++i) {
@@ -525,6 +533,48 @@ TEST(Trainer, DeferredAttributesGiveTheSameMapAsFetchingEachBatch) {
   EXPECT_EQ(se->fetches, 0);
 }
 
+
+// Out of device memory with the attributes deferred: a failed batch brings them down before the
+// engine drops its copy — idle iterations (optimise()) that fail after others left their result
+// on the device, and a keyframe's batch, after which the trainer shrinks the map (its removal
+// sends the whole map again) and trains; the map stays the one a trainer that fetches after every
+// batch ends with, to the bit.
+TEST(Trainer, DeferredAttributesSurviveRunningOutOfDeviceMemory) {
+  GaussianTrainer::Params p;
+  p.iterations = 4;
+  auto make = [&](bool defer, std::shared_ptr<Shadow>* shadow) {
+    *shadow = std::make_shared<Shadow>();
+    (*shadow)->defer_ok = defer;
+    return std::make_unique<GaussianTrainer>(p, std::make_unique<ShadowRasteriser>(*shadow),
+                                             std::make_unique<ShadowEngine>(*shadow));
+  };
+  std::shared_ptr<Shadow> sd, se;
+  auto deferred = make(true, &sd);
+  auto eager = make(false, &se);
+  for (int k = 0; k < 5; ++k) {
+    const std::string where = "keyframe " + std::to_string(k);
+    if (k == 2) {
+      deferred->optimise(3), eager->optimise(3);
+      EXPECT_TRUE(sd->pending) << "idle iterations left on the device";
+      sd->fail = se->fail = 1;
+      EXPECT_THROW(deferred->optimise(3), OutOfDeviceMemory);
+      EXPECT_THROW(eager->optimise(3), OutOfDeviceMemory);
+    }
+    if (k == 3) sd->fail = se->fail = 1;
+    const KeyframeReport a = deferred->add_keyframe(keyframe_of(k));
+    const KeyframeReport b = eager->add_keyframe(keyframe_of(k));
+    EXPECT_EQ(a.pruned_memory, b.pruned_memory) << where;
+    EXPECT_EQ(a.device_error.empty(), k != 3) << where << ": " << a.device_error;
+    EXPECT_EQ(a.iterations, p.iterations) << where << ": trained after shrinking";
+    ASSERT_EQ(a.num_gaussians, b.num_gaussians) << where;
+  }
+  EXPECT_GT(eager->map().size(), 0u);
+  const GaussianMap& m = deferred->map();
+  EXPECT_EQ(m.positions(), eager->map().positions());
+  EXPECT_EQ(m.log_scales(), eager->map().log_scales());
+  EXPECT_EQ(m.confidences(), eager->map().confidences());
+  EXPECT_EQ(m.object_ids_per_gaussian(), eager->map().object_ids_per_gaussian());
+}
 
 // A training engine whose device runs out of memory the next `fail` times it is asked (run()
 // throws OutOfDeviceMemory as the CUDA engine does); otherwise it trains nothing (losses of 0).
