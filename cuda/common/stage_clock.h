@@ -17,10 +17,11 @@
 
 namespace dqo::cuda::detail {
 
-enum class Stage : int { kUpload, kProject, kBin, kComposite, kLosses, kBackward, kAdam, kDownload, kCount };
+enum class Stage : int { kUpload, kSelect, kProject, kBin, kComposite, kLosses, kBackward, kAdam, kDownload, kCount };
 
 inline const char* stage_name(Stage s) {
-  static const char* const names[] = {"upload", "project", "bin", "composite", "losses", "backward", "adam", "download"};
+  static const char* const names[] = {"upload", "select",   "project", "bin",     "composite",
+                                      "losses", "backward", "adam",    "download"};
   return names[static_cast<int>(s)];
 }
 

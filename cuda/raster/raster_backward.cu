@@ -185,10 +185,11 @@ __global__ void project_vjp_kernel(DeviceGaussians g, gs::CameraView<float> cam,
     return;
   }
   const Grad2D t = grad2d[i];
+  const size_t e = entry_of(g, i);
   // Written, not added: the arrays need no zeroing for the Gaussians a pass reached.
   float v_position[3] = {0.f, 0.f, 0.f}, v_log_scale[3] = {0.f, 0.f, 0.f};
   float v_rotation[4] = {0.f, 0.f, 0.f, 0.f};
-  gs::project_gaussian_vjp(g.position + 3 * i, g.log_scale + 3 * i, g.rotation + 4 * i, cam,
+  gs::project_gaussian_vjp(g.position + 3 * e, g.log_scale + 3 * e, g.rotation + 4 * e, cam,
                            gs::Vec2<float>{t.mean2d[0], t.mean2d[1]}, gs::Sym2<float>{t.conic[0], t.conic[1], t.conic[2]},
                            t.depth, v_position, v_log_scale, v_rotation, static_cast<gs::Mat3<float>*>(nullptr),
                            static_cast<gs::Vec3<float>*>(nullptr));

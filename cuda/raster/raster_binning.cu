@@ -23,10 +23,23 @@ __global__ void emit_keys_kernel(size_t n, const DeviceSplat* splats, const Tile
   const uint32_t begin = offsets[i], end = offsets[i + 1];
   if (begin == end) return;
   const TileRect t = rects[i];
-  const DeviceSplat s = splats[i];
-  const uint32_t bits = __float_as_uint(s.depth);
+  const float depth = splats[i].depth;
+  const uint32_t bits = __float_as_uint(depth);
   const uint64_t depth_bits = min(static_cast<uint64_t>(bits > dk.base ? bits - dk.base : 0u), dk.max);
   uint32_t k = begin;
+  const int w = t.x1 - t.x0 + 1;
+  if (w * (t.y1 - t.y0 + 1) <= kReachedBits) {
+    // The projection's answers, in the same (row by row) order.
+    for (uint32_t m = t.reached; m != 0 && k < end; m &= m - 1) {
+      const int b = __ffs(m) - 1;
+      const int tx = t.x0 + b % w, ty = t.y0 + b / w;
+      keys[k] = (static_cast<uint64_t>(ty * tiles_x + tx) << dk.bits) | depth_bits;
+      values[k] = static_cast<uint32_t>(i);
+      ++k;
+    }
+    return;
+  }
+  const DeviceSplat s = splats[i];
   for (int ty = t.y0; ty <= t.y1 && k < end; ++ty) {
     for (int tx = t.x0; tx <= t.x1 && k < end; ++tx) {
       if (!tile_reached(s, tx, ty, width, height)) continue;

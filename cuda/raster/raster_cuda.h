@@ -23,7 +23,12 @@ constexpr uint8_t kOpaqueType = 0;
 
 // The map's arrays on the device (float; rotations w x y z of any norm).
 struct DeviceGaussians {
+  // The Gaussians a pass works on: entries index[0 .. count) of the arrays, ascending (a training
+  // batch's selection: those its views reach, train_select.cu), or the first `count` when null.
+  // The pass's own per-Gaussian arrays (splats, tile counts, 2D and attribute gradients) are
+  // indexed by position in that list, the map's arrays by the entry.
   size_t count = 0;
+  const uint32_t* index = nullptr;
   const float* position = nullptr;      // [N*3]
   const float* log_scale = nullptr;     // [N*3]
   const float* rotation = nullptr;      // [N*4]
@@ -50,7 +55,52 @@ struct DeviceSplat {
 
 struct TileRect {
   int x0, y0, x1, y1;  // inclusive tiles; tile_count 0 when culled
+  // Which of the rectangle's tiles the ellipse reaches (bit k: the k-th tile, row by row), when it
+  // has at most kReachedBits tiles (most splats): the projection tests each tile once and the key
+  // emission reads the answer instead of testing again. Larger rectangles are tested again.
+  uint32_t reached;
 };
+constexpr int kReachedBits = 32;
+
+#ifdef __CUDACC__
+// The map entry of the pass's i-th Gaussian.
+__device__ __forceinline__ size_t entry_of(const DeviceGaussians& g, size_t i) { return g.index ? g.index[i] : i; }
+
+// A Gaussian projected for the pass: culled by the near plane and the image bounds, its α ≥ 1/255
+// box (clipped, pixel centres) and the tiles of that box within its 3σ square — the CPU
+// reference's rule (src/gaussians/raster_projection.cpp). False: no pixel of the image sees it.
+// The projection (raster_projection.cu) and the training batch's selection (train_select.cu)
+// both ask it, so the selection keeps exactly what a pass of its views could bin.
+struct Footprint {
+  gs::ProjectedGaussian<float> p;
+  float opacity;
+  int box[4];  // x0 y0 x1 y1
+  TileRect rect;
+};
+__device__ __forceinline__ bool project_footprint(const DeviceGaussians& g, size_t e, const gs::CameraView<float>& cam,
+                                                  Footprint* f) {
+  if (!gs::project_gaussian(g.position + 3 * e, g.log_scale + 3 * e, g.rotation + 4 * e, cam, &f->p)) return false;
+  const gs::ProjectedGaussian<float>& p = f->p;
+  f->opacity = g.opacity[e];
+  gs::Vec2<float> half;
+  if (!gs::alpha_extent(p.cov2d, f->opacity, &half)) return false;
+  const int width = cam.K.width, height = cam.K.height;
+  const float r = static_cast<float>(p.radius);
+  const float fx0 = ceilf(p.mean2d.x - r), fx1 = floorf(p.mean2d.x + r);
+  const float fy0 = ceilf(p.mean2d.y - r), fy1 = floorf(p.mean2d.y + r);
+  if (!(fx1 >= 0 && fy1 >= 0 && fx0 <= float(width - 1) && fy0 <= float(height - 1))) return false;
+  const int px0 = static_cast<int>(fmaxf(0.f, fx0)), px1 = static_cast<int>(fminf(float(width - 1), fx1));
+  const int py0 = static_cast<int>(fmaxf(0.f, fy0)), py1 = static_cast<int>(fminf(float(height - 1), fy1));
+  const float ax0 = ceilf(p.mean2d.x - half.x), ax1 = floorf(p.mean2d.x + half.x);
+  const float ay0 = ceilf(p.mean2d.y - half.y), ay1 = floorf(p.mean2d.y + half.y);
+  if (!(ax1 >= 0 && ay1 >= 0 && ax0 <= float(width - 1) && ay0 <= float(height - 1))) return false;
+  f->box[0] = static_cast<int>(fmaxf(0.f, ax0)), f->box[2] = static_cast<int>(fminf(float(width - 1), ax1));
+  f->box[1] = static_cast<int>(fmaxf(0.f, ay0)), f->box[3] = static_cast<int>(fminf(float(height - 1), ay1));
+  f->rect = TileRect{max(px0, f->box[0]) / kTileSize, max(py0, f->box[1]) / kTileSize,
+                     min(px1, f->box[2]) / kTileSize, min(py1, f->box[3]) / kTileSize, 0u};
+  return f->rect.x0 <= f->rect.x1 && f->rect.y0 <= f->rect.y1;
+}
+#endif
 
 // Whether a splat's α ≥ 1/255 ellipse reaches tile (tx, ty) of a width × height image: the CPU
 // binning's question (src/gaussians/raster_binning.cpp), asked by projection (to count) and by

@@ -49,6 +49,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     }
   }
   ~CudaTrainingEngine() override {
+    if (select_temp_) cudaFree(select_temp_);
     if (!clock_.enabled()) return;
     clock_.collect();
     std::fprintf(stderr, "CUDA training engine, GPU time by stage over %s\n", clock_.summary().c_str());
@@ -86,19 +87,18 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     }
   }
 
-  void map_removed(const std::vector<uint8_t>& remove) override {
+  void map_removed(const gs::RemovalPlan& plan) override {
     try {
-      if (pending_ && remove.size() != resident_->count())
-        throw std::logic_error("deferred attributes: the removal's mask covers Gaussians not on the device");
-      resident_->remove_if(remove, pipe_.stream());
+      if (pending_ && plan.size != resident_->count())
+        throw std::logic_error("deferred attributes: the removal's plan covers Gaussians not on the device");
+      resident_->remove(plan, pipe_.stream());
     } catch (const std::exception& e) {
       // The next batch sends the host's map. Deferred attributes come down first, with the same
-      // removal applied, where the device still holds them as they were (remove_if failed before
+      // removal applied, where the device still holds them as they were (remove() failed before
       // changing anything); fetch_attributes() writes them.
-      if (pending_ && resident_->valid() && remove.size() == resident_->count()) {
+      if (pending_ && resident_->valid() && plan.size == resident_->count()) {
         try {
           detail::ResidentMap::Trained t = resident_->download_trained(pipe_.stream());
-          const gs::RemovalPlan plan = gs::plan_removal(remove);
           const auto arrays = t.arrays();
           for (size_t k = 0; k < arrays.size(); ++k)
             gs::apply_removal(arrays[k], detail::ResidentMap::kTrainedWidths[k], plan);
@@ -261,7 +261,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto& cv : spare_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto* b : {&v_rgb_, &v_depth_, &v_ins_}) total += b->bytes();
-    total += rgb8_.bytes();
+    total += rgb8_.bytes() + select_keep_.bytes() + select_offsets_.bytes() + select_index_.bytes() + select_temp_bytes_;
     return total + resident_->bytes() + gradients_.bytes() + pipe_.bytes() + sums_.bytes();
   }
 
@@ -274,15 +274,16 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
                                    const std::vector<gs::TrainingStep>& steps, const gs::TrainingLoss& loss,
                                    gs::GaussianMap* map, gs::GaussianAdam* adam) {
     std::vector<double> losses(steps.size(), 0.0);
-    const size_t n = map->size();
     const cudaStream_t stream = pipe_.stream();
     clock_.start(stream);
     // What the host appended or flagged since the last batch, up.
     resident_->sync_up(*map, *adam, stream);
     clock_.end(detail::Stage::kUpload, stream);
-    const detail::DeviceTrainable t = resident_->trainable();
-    const detail::DeviceGaussians g = resident_->gaussians();
-    const detail::DeviceAttributeGradients grad = gradients_.get(n);
+    detail::DeviceTrainable t = resident_->trainable();
+    detail::DeviceGaussians g = resident_->gaussians();
+    select(views, steps, loss, &g, &t);
+    clock_.end(detail::Stage::kSelect, stream);
+    const detail::DeviceAttributeGradients grad = gradients_.get(std::max<size_t>(g.count, 1));
     double* sums = sums_.ensure(3 * steps.size(), "loss sums");
     check(cudaMemsetAsync(sums, 0, 3 * steps.size() * sizeof(double), stream), "loss sums");
 
@@ -348,6 +349,36 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
                   host_sums[3 * k + 2] * ins_norm[k];
     }
     return losses;
+  }
+
+  // The batch's selection (train_select.cu): the passes work on the Gaussians some view of the
+  // batch can bin, an ascending list into the map, when that leaves any out (else on the whole
+  // map, without the list's indirection). The others get no gradient and stay as they are.
+  void select(const std::vector<gs::TrainingView>& views, const std::vector<gs::TrainingStep>& steps,
+              const gs::TrainingLoss& loss, detail::DeviceGaussians* g, detail::DeviceTrainable* t) {
+    const size_t n = g->count;
+    std::vector<uint8_t> used(views.size(), 0);
+    std::vector<gs::CameraView<float>> cams;
+    for (const gs::TrainingStep& s : steps) {
+      if (used[s.view]) continue;
+      used[s.view] = 1;
+      const gs::TrainingView& v = views[s.view];
+      cams.push_back(gs::detail::make_camera_view<float>(*v.camera, v.T_cw, loss.settings.near));
+    }
+    uint32_t* keep = select_keep_.ensure(n + 1, "batch selection");
+    uint32_t* offsets = select_offsets_.ensure(n + 1, "batch selection");
+    uint32_t* index = select_index_.ensure(std::max<size_t>(n, 1), "batch selection");
+    const cudaStream_t stream = pipe_.stream();
+    check(detail::select_in_views(*g, cams.data(), cams.size(), keep, offsets, index, &select_temp_,
+                                  &select_temp_bytes_, stream),
+          "batch selection");
+    uint32_t selected = 0;
+    check(cudaMemcpyAsync(&selected, offsets + n, sizeof selected, cudaMemcpyDeviceToHost, stream), "batch selection");
+    check(cudaStreamSynchronize(stream), "batch selection");
+    selected_ = selected;
+    if (selected == n) return;
+    g->index = t->index = index;
+    g->count = t->count = selected;
   }
 
   // Keeps the images of `views` on the device (new keys up, keys no longer in the window freed).
@@ -422,6 +453,11 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   DeviceBuffer<uint8_t> review_votes_;
   DeviceBuffer<uint2> review_relabels_;
   DeviceBuffer<uint8_t> flag_bytes_;  // flag_prune()'s
+  // select()'s scratch and list; the scan's scratch; the size of the latest batch's selection.
+  DeviceBuffer<uint32_t> select_keep_, select_offsets_, select_index_;
+  void* select_temp_ = nullptr;
+  size_t select_temp_bytes_ = 0;
+  size_t selected_ = 0;
   // Deferred attributes (defer_attributes()): asked for; the device's newer than the host map's;
   // what a failed removal brought down for fetch_attributes().
   bool defer_ = false;

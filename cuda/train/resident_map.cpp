@@ -37,7 +37,7 @@ void fetch(std::vector<T>* host, const T* device, size_t n, cudaStream_t stream)
 
 void ResidentMap::sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& adam, cudaStream_t stream) {
   const size_t n = map.size();
-  // A map smaller than what is held was changed behind remove_if(): start over.
+  // A map smaller than what is held was changed behind remove(): start over.
   if (!valid_ || n < count_) invalidate();
   const size_t from = count_;
   const gs::GaussianAdam::State& st = adam.state();
@@ -112,23 +112,22 @@ void ResidentMap::wait() const {
   if (stream_) check(cudaStreamSynchronize(stream_), "resident map");
 }
 
-void ResidentMap::remove_if(const std::vector<uint8_t>& remove, cudaStream_t stream) {
+void ResidentMap::remove(const gs::RemovalPlan& plan, cudaStream_t stream) {
   if (!valid_) return;
-  if (remove.size() < count_) {  // not a mask over what is held
+  if (plan.size < count_) {  // not a plan over what is held
     invalidate();
     return;
   }
   const size_t n = count_;
   if (n == 0) return;
-  // The host's plan, over its whole mask (it may cover Gaussians appended since the last batch).
+  // The host's plan, over all its Gaussians (it may cover some appended since the last batch).
   // The device makes the moves whose source it holds (the first ones: sources ascend) and keeps
   // the prefix it then has as the host does: up to the first hole filled from beyond it, or all
   // it held that survives. The next sync_up() sends the rest.
-  const gs::RemovalPlan plan = gs::plan_removal(remove);
   size_t moves = 0;
   while (moves < plan.sources.size() && plan.sources[moves] < n) ++moves;
   const size_t kept = std::min(moves < plan.holes.size() ? size_t{plan.holes[moves]} : plan.kept, n);
-  if (plan.kept == remove.size()) return;  // nothing removed
+  if (plan.kept == plan.size) return;  // nothing removed
   // The plan's buffers before any change: running out of memory here leaves what is held intact.
   uint32_t* holes = holes_.ensure(moves, "removal plan");
   uint32_t* sources = sources_.ensure(moves, "removal plan");

@@ -9,7 +9,7 @@
 //   down: the trained attributes (position, log-scale, rotation, colour, confidence: 56 bytes);
 //         the optimiser state stays on the device until asked for (download_optimiser()).
 // The host may append Gaussians and change those two flags freely; it removes Gaussians through
-// remove_if() with GaussianMap::remove_if's mask (the device fills the holes by the same plan);
+// remove() with GaussianMap::remove's plan (the device fills the holes by the same plan);
 // anything else that changes the map (a loaded one) calls invalidate(), and the next sync_up()
 // sends everything.
 
@@ -58,9 +58,9 @@ class ResidentMap {
  public:
   // Brings the device copy in step with the host's `map` and `adam` (adam sized for the map).
   void sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& adam, cudaStream_t stream);
-  // The host removed the Gaussians with remove[i] != 0 (a mask over its map as it was: the
-  // resident Gaussians first, then any appended since the last sync_up()).
-  void remove_if(const std::vector<uint8_t>& remove, cudaStream_t stream);
+  // The host removed Gaussians by `plan` (over its map as it was: the resident Gaussians first,
+  // then any appended since the last sync_up()).
+  void remove(const gs::RemovalPlan& plan, cudaStream_t stream);
   void invalidate() {
     valid_ = false;
     count_ = 0;
@@ -74,7 +74,7 @@ class ResidentMap {
   bool shows(const gs::GaussianMap& map) const {
     return valid_ && synced_map_ == &map && synced_revision_ == map.revision() && count_ == map.size();
   }
-  // Waits for the device work on its arrays (sync_up()'s copies, remove_if()'s compaction), for
+  // Waits for the device work on its arrays (sync_up()'s copies, remove()'s compaction), for
   // a reader on another stream.
   void wait() const;
 
@@ -148,7 +148,7 @@ class ResidentMap {
   const gs::GaussianMap* synced_map_ = nullptr;  // the map and revision of the latest sync_up()
   uint64_t synced_revision_ = 0;
   // The map and GaussianMap::flags_revision() whose flags the device holds (the same after a
-  // remove_if(): both sides apply one plan).
+  // remove(): both sides apply one plan).
   const gs::GaussianMap* flags_map_ = nullptr;
   uint64_t flags_revision_ = 0;
   size_t sent_ = 0;
@@ -161,7 +161,7 @@ class ResidentMap {
   GrowingBuffer<float> usefulness_;
   GrowingBuffer<uint16_t> invisible_;
   GrowingBuffer<uint8_t> votes_;
-  // remove_if()'s plan on the device (gs::RemovalPlan's holes and sources).
+  // remove()'s plan on the device (gs::RemovalPlan's holes and sources).
   DeviceBuffer<uint32_t> holes_, sources_;
 
  public:

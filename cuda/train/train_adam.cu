@@ -20,12 +20,14 @@ __device__ bool any_nonzero(const float* g, int width) {
 __global__ void adam_kernel(DeviceTrainable t, const uint32_t* tile_count, const float* grad_position,
                             const float* grad_log_scale, const float* grad_rotation, const float* grad_colour,
                             AdamRates r) {
-  const size_t i = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (i >= t.count || t.stable[i] || tile_count[i] == 0) return;
-  const float* gp = grad_position + 3 * i;
-  const float* gs_ = grad_log_scale + 3 * i;
-  const float* gq = grad_rotation + 4 * i;
-  const float* gc = grad_colour + 3 * i;
+  const size_t j = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;  // in the pass
+  if (j >= t.count || tile_count[j] == 0) return;
+  const size_t i = t.index ? t.index[j] : j;  // in the map
+  if (t.stable[i]) return;
+  const float* gp = grad_position + 3 * j;
+  const float* gs_ = grad_log_scale + 3 * j;
+  const float* gq = grad_rotation + 4 * j;
+  const float* gc = grad_colour + 3 * j;
   if (!(any_nonzero(gp, 3) || any_nonzero(gc, 3) || any_nonzero(gs_, 3) || any_nonzero(gq, 4))) return;
   const unsigned step = ++t.steps[i];
   const gs::AdamCorrection c = gs::adam_correction(r.beta1, r.beta2, step);

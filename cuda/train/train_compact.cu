@@ -1,4 +1,4 @@
-// remove_if() of the resident map (resident_map.cpp) on the device: the host's RemovalPlan
+// remove() of the resident map (resident_map.cpp) on the device: the host's RemovalPlan
 // (dqo_map/gaussians/removal_plan.h) applied to each array in place, the holes below the new size
 // filled from the kept entries above it, as GaussianMap::remove_if does on the host. One thread
 // per moved value.

@@ -46,7 +46,10 @@ struct AdamRates {
 
 // The trainable map and its optimiser state on the device.
 struct DeviceTrainable {
+  // As DeviceGaussians: the pass's Gaussians are entries index[0 .. count) (ascending), or the
+  // first `count` when null; the gradients and tile counts are indexed by position in the list.
   size_t count = 0;
+  const uint32_t* index = nullptr;
   float* position = nullptr;    // [N*3]
   float* log_scale = nullptr;   // [N*3]
   float* rotation = nullptr;    // [N*4]
@@ -65,7 +68,17 @@ void launch_adam(const DeviceTrainable& t, const uint32_t* tile_count, const flo
                  const float* grad_log_scale, const float* grad_rotation, const float* grad_colour,
                  const AdamRates& rates, cudaStream_t stream);
 
-// The resident map's remove_if (train_compact.cu), by the host's RemovalPlan
+// The training batch's selection (train_select.cu): into index[0 .. offsets[n]) (ascending), the
+// Gaussians of g (all n of the map: g.index null) that project_footprint() keeps in at least one
+// of the views — all that any pass of the batch can bin; the others get no gradient and cannot
+// move, so a batch that works on the list alone trains as one on the whole map. keep and offsets
+// hold n + 1 entries of scratch (keep[i]: selected), index n; temp is the scan's scratch, grown as
+// needed (raster_binning.cu's exclusive_scan). Asynchronous: the count is offsets[n] on the device.
+cudaError_t select_in_views(const DeviceGaussians& g, const gs::CameraView<float>* views, size_t view_count,
+                            uint32_t* keep, uint32_t* offsets, uint32_t* index, void** temp, size_t* temp_bytes,
+                            cudaStream_t stream);
+
+// The resident map's remove() (train_compact.cu), by the host's RemovalPlan
 // (dqo_map/gaussians/removal_plan.h): a[holes[k]·width + c] = a[sources[k]·width + c] for every
 // k < moves, c < width, in place (holes lie below the new size, sources at or above it: no entry
 // is both read and written); for 4-byte (float bits too) and 1-byte values.

@@ -40,8 +40,10 @@ void GaussianAdam::resize_for(const GaussianMap& map) {
   s_.steps.resize(n, 0);
 }
 
-void GaussianAdam::remove_if(const std::vector<uint8_t>& remove) {
-  detail::Compaction c(remove);
+void GaussianAdam::remove_if(const std::vector<uint8_t>& remove) { this->remove(plan_removal(remove)); }
+
+void GaussianAdam::remove(const RemovalPlan& plan) {
+  detail::Compaction c(plan);
   if (!keep_moments_) {
     drop_moments();
     c.add(&s_.steps, 1);

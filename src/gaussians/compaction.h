@@ -11,10 +11,12 @@
 
 namespace dqo::gs::detail {
 
-// Applies one mask's plan to several arrays: add() each, then run().
+// Applies one plan (a mask's, or one made once for several owners) to several arrays: add()
+// each, then run().
 class Compaction {
  public:
-  explicit Compaction(const std::vector<uint8_t>& remove) : plan_(plan_removal(remove)) {}
+  explicit Compaction(const std::vector<uint8_t>& remove) : own_(plan_removal(remove)), plan_(own_) {}
+  explicit Compaction(const RemovalPlan& plan) : plan_(plan) {}
   template <typename T>
   void add(std::vector<T>* values, size_t width) {
     jobs_.push_back([values, width, this] { apply_removal(values, width, plan_); });
@@ -28,7 +30,8 @@ class Compaction {
 
  private:
   static constexpr size_t kThreadedFrom = 1 << 16;  // moves
-  RemovalPlan plan_;
+  RemovalPlan own_;  // the mask's
+  const RemovalPlan& plan_;
   std::vector<std::function<void()>> jobs_;
 };
 

@@ -83,8 +83,15 @@ size_t GaussianMap::remove_if(const std::vector<uint8_t>& remove) {
     throw std::invalid_argument("GaussianMap::remove_if: mask has " +
                                 std::to_string(remove.size()) + " entries for " +
                                 std::to_string(size()) + " Gaussians");
+  return this->remove(plan_removal(remove));
+}
+
+size_t GaussianMap::remove(const RemovalPlan& plan) {
+  if (plan.size != size())
+    throw std::invalid_argument("GaussianMap::remove: the plan is for " + std::to_string(plan.size) +
+                                " Gaussians, the map has " + std::to_string(size()));
   const size_t before = size();
-  detail::Compaction c(remove);
+  detail::Compaction c(plan);
   c.add(&position_, 3);
   c.add(&log_scale_, 3);
   c.add(&rotation_, 4);

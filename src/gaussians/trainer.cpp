@@ -676,27 +676,34 @@ void GaussianTrainer::prune(KeyframeReport* report) {
       }
     });
   }
-  std::vector<uint8_t> remove(n, 0);
-  // Each Gaussian on its own, over threads (a million take a few ms on one core); the counts
-  // summed per chunk.
+  // Each Gaussian on its own, over threads in fixed chunks (a million take a few ms on one core),
+  // each chunk listing its removals in order: the lists joined make the removal's plan without
+  // another pass over the map (removal_plan.h), and each owner of per-Gaussian arrays applies it.
+  constexpr size_t kChunk = size_t{1} << 16;
+  const size_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<std::vector<uint32_t>> listed(chunks);
   std::atomic<size_t> stale{0}, oversized{0}, invisible{0};
-  detail::parallel_for_chunks(detail::resolve_threads(0), n, [&](size_t begin, size_t end) {
+  detail::parallel_for_dynamic(detail::resolve_threads(0), chunks, [&](size_t c) {
     size_t n_stale = 0, n_oversized = 0, n_invisible = 0;
-    for (size_t i = begin; i < end; ++i) {
+    std::vector<uint32_t>& list = listed[c];
+    for (size_t i = c * kChunk, end = std::min(n, (c + 1) * kChunk); i < end; ++i) {
       if (params_.max_unstable_age > 0 && !stable[i] &&
           now - birth[i] > static_cast<uint32_t>(params_.max_unstable_age)) {
-        remove[i] = 1;
         ++n_stale;
       } else if (tests[i] & kTooLarge) {
-        remove[i] = 1;
         ++n_oversized;
       } else if (tests[i] & kUnseen) {
-        remove[i] = 1;
         ++n_invisible;
+      } else {
+        continue;
       }
+      list.push_back(static_cast<uint32_t>(i));
     }
     stale += n_stale, oversized += n_oversized, invisible += n_invisible;
   });
+  std::vector<uint32_t> removed;
+  removed.reserve(stale + oversized + invisible);
+  for (const auto& list : listed) removed.insert(removed.end(), list.begin(), list.end());
   report->pruned_stale += stale;
   report->pruned_oversized += oversized;
   report->pruned_invisible += invisible;
@@ -705,7 +712,7 @@ void GaussianTrainer::prune(KeyframeReport* report) {
   // were): they are measured first, on the newest view after its optimisation, or a budget
   // smaller than one keyframe's additions would drop them in the order they were added (whole
   // rows of the image).
-  const size_t kept = n - stale - oversized - invisible;
+  const size_t kept = n - removed.size();
   if (params_.max_gaussians > 0 && kept > static_cast<size_t>(params_.max_gaussians)) {
     const StoredKeyframe& newest = window_.back();
     RenderOutput out;
@@ -716,6 +723,8 @@ void GaussianTrainer::prune(KeyframeReport* report) {
     rasteriser_->forward(map_, newest.camera, newest.T_wc.inverse(), state_only, &out, &state);
     review_gaussians(newest, *state, true);
     fetch_counters();  // the usefulness, on the host for the selection
+    std::vector<uint8_t> remove(n, 0);
+    for (const uint32_t i : removed) remove[i] = 1;
     std::vector<uint32_t> order;
     order.reserve(kept);
     for (size_t i = 0; i < n; ++i) {
@@ -734,8 +743,10 @@ void GaussianTrainer::prune(KeyframeReport* report) {
                      });
     for (size_t k = 0; k < excess; ++k) remove[order[k]] = 1;
     report->pruned_budget += excess;
+    remove_if(remove);
+    return;
   }
-  remove_if(remove);
+  if (!removed.empty()) remove_by(plan_removal(removed, n));
 }
 
 const GaussianAdam::State& GaussianTrainer::adam_state() {
@@ -744,36 +755,38 @@ const GaussianAdam::State& GaussianTrainer::adam_state() {
 }
 
 size_t GaussianTrainer::remove_if(const std::vector<uint8_t>& remove) {
-  sync_state();
   if (remove.size() != map_.size())
     throw std::invalid_argument("GaussianTrainer::remove_if: mask has " + std::to_string(remove.size()) +
                                 " entries for " + std::to_string(map_.size()) + " Gaussians");
-  const size_t removed =
-      static_cast<size_t>(std::count_if(remove.begin(), remove.end(), [](uint8_t r) { return r != 0; }));
-  if (removed == 0) return 0;
+  return remove_by(plan_removal(remove));
+}
+
+size_t GaussianTrainer::remove_by(const RemovalPlan& plan) {
+  sync_state();
+  if (plan.size != map_.size()) throw std::logic_error("GaussianTrainer: a removal plan for another map");
+  if (plan.removed() == 0) return 0;
   // Deferred attributes or kept counters: the engine holds every Gaussian first (the appended
   // ones sent), so that its removal runs in full there and keeps what it trained and counted (a
   // fetch by map() leaves the counters there).
   if ((attributes_on_device_ || counters_on_device_) && !engine_->holds(map_)) sync_engine();
   // The map's arrays, the optimiser's step counts, the trainer's own and the engine's copy at
-  // once, each by the same plan (removal_plan.h: a pass over the mask, then as many moves as
-  // removals).
+  // once, each by the same plan (removal_plan.h: as many moves as removals).
   detail::run_on_threads(4, [&](int job) {
     if (job == 0) {
-      map_.remove_if(remove);
+      map_.remove(plan);
     } else if (job == 1) {
-      adam_.remove_if(remove);
+      adam_.remove(plan);
     } else if (job == 2) {
-      if (engine_) engine_->map_removed(remove);
+      if (engine_) engine_->map_removed(plan);
     } else {
-      detail::Compaction c(remove);
+      detail::Compaction c(plan);
       c.add(&invisible_count_, 1);
       c.add(&relabel_votes_, 1);
       c.add(&usefulness_, 1);
       c.run();
     }
   });
-  return removed;
+  return plan.removed();
 }
 
 bool GaussianTrainer::set_keyframe_pose(uint32_t id, const SE3& T_wc) {

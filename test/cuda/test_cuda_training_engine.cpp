@@ -138,6 +138,62 @@ TEST(CudaTrainingEngine, OneStepHasTheHostsGradientsAndUpdates) {
   }
 }
 
+// A batch works on the Gaussians its views reach (the selection, train_select.cu), through an
+// index list when some are out of every view: Gaussians behind the cameras and far to the side,
+// scattered among the others (a removal's plan moves them into its holes), change nothing of what
+// the in-view ones learn, and stay as they were.
+TEST(CudaTrainingEngine, ABatchLeavesOutWhatNoViewReaches) {
+  if (!gpu_available()) GTEST_SKIP() << "no GPU";
+  for (uint64_t seed : {4u, 5u}) {
+    const gs::GaussianMap truth = truth_map(seed);
+    Pair t(params(seed, 0));
+    build_alike(&t, truth, 3);
+    gs::GaussianMap m = t.host.map();
+    const size_t in_view = m.size();
+    std::mt19937_64 rng(seed);
+    for (int i = 0; i < 1500; ++i) {
+      gs::GaussianInit g;
+      g.position = i % 2 ? Eigen::Vector3f(uniform(rng, -2, 2), uniform(rng, -2, 2), uniform(rng, -3, -0.5))
+                         : Eigen::Vector3f(uniform(rng, 30, 40), uniform(rng, -2, 2), uniform(rng, 2, 4));
+      g.colour = Eigen::Vector3f(0.2f, 0.9f, 0.4f);
+      g.log_scale = Eigen::Vector3f::Constant(-3.f);
+      g.rotation = Eigen::Vector4f(1, 0, 0, 0);
+      m.add(g);
+    }
+    std::vector<uint8_t> remove(m.size(), 0);
+    for (size_t i = 0; i < in_view; i += 8) remove[i] = 1;
+    m.remove_if(remove);
+    const auto out_of_view = [&](size_t i) { return m.positions()[3 * i + 2] < 0.f || m.positions()[3 * i] > 20.f; };
+    size_t scattered = 0;
+    for (size_t i = 0; i + 1500 < m.size(); ++i) scattered += out_of_view(i);
+    ASSERT_GT(scattered, 100u) << "seed " << seed << ": out-of-view Gaussians among the others";
+    t.host.set_map(m);
+    t.gpu.set_map(m);
+    const double loss_host = t.host.optimise(1), loss_gpu = t.gpu.optimise(1);
+    EXPECT_NEAR(loss_gpu, loss_host, 1e-4 * loss_host) << "seed " << seed;
+    const gs::GaussianMap& h = t.host.map();
+    const gs::GaussianMap& g = t.gpu.map();
+    ASSERT_EQ(g.size(), m.size());
+    size_t moved_host = 0, moved_gpu = 0, out_moved = 0;
+    for (size_t i = 0; i < h.size(); ++i) {
+      moved_host += h.confidences()[i] > 0.f;
+      moved_gpu += g.confidences()[i] > 0.f;
+      if (!out_of_view(i)) continue;
+      for (int k = 0; k < 3; ++k) out_moved += g.positions()[3 * i + k] != m.positions()[3 * i + k];
+    }
+    EXPECT_GT(moved_host, h.size() / 4) << "seed " << seed;
+    EXPECT_EQ(moved_gpu, moved_host) << "seed " << seed << ": the same Gaussians step";
+    EXPECT_EQ(out_moved, 0u) << "seed " << seed;
+    const gs::GaussianAdam::State& sh = t.host.adam_state();
+    const gs::GaussianAdam::State& sg = t.gpu.adam_state();
+    EXPECT_LE(relative_l2(sg.position.m, sh.position.m), 1e-3) << "position gradients, seed " << seed;
+    EXPECT_LE(relative_l2(sg.colour.m, sh.colour.m), 1e-3) << "colour gradients, seed " << seed;
+    EXPECT_EQ(sg.steps, sh.steps) << "seed " << seed;
+    EXPECT_LE(relative_l2(g.positions(), h.positions()), 1e-5) << "seed " << seed;
+    EXPECT_LE(relative_l2(g.colours(), h.colours()), 1e-3) << "seed " << seed;
+  }
+}
+
 TEST(CudaTrainingEngine, AMappingStepsLossCurveIsTheHosts) {
   if (!gpu_available()) GTEST_SKIP() << "no GPU";
   for (uint64_t seed : {4u, 5u, 6u}) {
@@ -249,7 +305,7 @@ TEST(CudaTrainingEngine, ReviewOnTheDeviceMatchesTheHostLoop) {
       const gs::RemovalPlan plan = gs::plan_removal(remove);
       map.remove_if(remove);
       adam.remove_if(remove);
-      backend.engine->map_removed(remove);
+      backend.engine->map_removed(gs::plan_removal(remove));
       gs::apply_removal(&truth_ids, 1, plan);
       gs::apply_removal(&use_h, 1, plan);
       gs::apply_removal(&inv_h, 1, plan);
@@ -408,9 +464,9 @@ TEST(CudaTrainingEngine, DeferredAttributesComeDownWhenFetched) {
     }
   };
   md.remove_if(remove);
-  backend.engine->map_removed(remove);
+  backend.engine->map_removed(gs::plan_removal(remove));
   me.remove_if(remove);
-  eager->map_removed(remove);
+  eager->map_removed(gs::plan_removal(remove));
   append(50, 13);
   backend.engine->run(views, steps, loss, &md, &ad);
   eager->run(views, steps, loss, &me, &ae);

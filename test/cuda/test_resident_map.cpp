@@ -104,7 +104,7 @@ TEST(ResidentMap, FollowsTheHostsRemovalsAppendsAndFlags) {
       adam.resize_for(map);
       map.remove_if(remove);
       adam.remove_if(remove);
-      resident.remove_if(remove, stream);
+      resident.remove(gs::plan_removal(remove), stream);
       if (!append_first)
         for (int i = 0; i < 200 + 100 * round; ++i) map.add(random_gaussian(rng));
       // The device holds the survivors of its `before` Gaussians; the rest are the host's new ones.
@@ -187,7 +187,7 @@ TEST(ResidentMap, KeepsTheMomentsTheHostLeavesToIt) {
     for (uint8_t& r : remove) r = uniform(rng, 0, 1) < 0.2;
     map.remove_if(remove);
     adam.remove_if(remove);
-    resident.remove_if(remove, stream);
+    resident.remove(gs::plan_removal(remove), stream);
     resident.sync_up(map, adam, stream);
     // The host's removal of the same mask (removal_plan.h, tested on its own in test_map.cpp).
     const gs::RemovalPlan plan = gs::plan_removal(remove);

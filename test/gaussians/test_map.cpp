@@ -190,6 +190,31 @@ TEST(RemovalPlan, KeepsTheSurvivorsAndMovesOnlyIntoHoles) {
   }
 }
 
+// The plan made from the list of removed indices (the pruning's, without a pass over a mask) is
+// the mask's, entry for entry; a list out of order or out of range is refused.
+TEST(RemovalPlan, FromTheRemovedIndicesIsTheMasks) {
+  std::mt19937 rng(4);
+  for (int trial = 0; trial < 300; ++trial) {
+    const size_t n = std::uniform_int_distribution<size_t>(0, 80)(rng);
+    const double p = std::uniform_real_distribution<double>(0.0, 1.0)(rng);
+    std::vector<uint8_t> remove(n);
+    std::vector<uint32_t> removed;
+    for (size_t i = 0; i < n; ++i) {
+      remove[i] = std::bernoulli_distribution(p)(rng) ? 1 : 0;
+      if (remove[i]) removed.push_back(static_cast<uint32_t>(i));
+    }
+    const RemovalPlan from_mask = plan_removal(remove), from_list = plan_removal(removed, n);
+    EXPECT_EQ(from_list.size, n);
+    EXPECT_EQ(from_list.kept, from_mask.kept) << "trial " << trial;
+    EXPECT_EQ(from_list.removed(), removed.size());
+    EXPECT_EQ(from_list.holes, from_mask.holes) << "trial " << trial;
+    EXPECT_EQ(from_list.sources, from_mask.sources) << "trial " << trial;
+  }
+  EXPECT_THROW(plan_removal(std::vector<uint32_t>{3, 1}, 5), std::invalid_argument);
+  EXPECT_THROW(plan_removal(std::vector<uint32_t>{1, 1}, 5), std::invalid_argument);
+  EXPECT_THROW(plan_removal(std::vector<uint32_t>{5}, 5), std::invalid_argument);
+}
+
 TEST(GaussianMap, BytesUsed) {
   GaussianMap map;
   EXPECT_EQ(map.bytes_used(), 0u);

@@ -430,15 +430,14 @@ class ShadowEngine final : public TrainingEngine {
     return std::vector<double>(steps.size(), 0.0);
   }
   void sync(const GaussianMap& map, const GaussianAdam&) override { s_->sync(map); }
-  void map_removed(const std::vector<uint8_t>& remove) override {
+  void map_removed(const RemovalPlan& plan) override {
     if (!s_->valid) return;
-    if (remove.size() != s_->count) {  // the trainer syncs first while attributes are deferred
+    if (plan.size != s_->count) {  // the trainer syncs first while attributes are deferred
       EXPECT_FALSE(s_->pending) << "a removal over Gaussians the engine does not hold, its attributes deferred";
       s_->valid = false;
       return;
     }
     s_->removals_pending += s_->pending ? 1 : 0;
-    const RemovalPlan plan = plan_removal(remove);
     for (int a = 0; a < 5; ++a) apply_removal(&s_->attr[a], Shadow::width(a), plan);
     s_->count = plan.kept;
     s_->synced = nullptr;

@@ -51,6 +51,7 @@ class GaussianAdam {
   bool moments_on_host() const { return keep_moments_; }
   // Drops the state of every Gaussian i with remove[i] != 0, as GaussianMap::remove_if does.
   void remove_if(const std::vector<uint8_t>& remove);
+  void remove(const RemovalPlan& plan);  // the same by the map's plan
   void reset();
 
   // One step on every Gaussian i with update[i] != 0 (update.size() == map->size()); the gradient

@@ -15,6 +15,8 @@
 
 #include <Eigen/Core>
 
+#include "dqo_map/gaussians/removal_plan.h"
+
 namespace dqo::gs {
 
 enum class GaussianType : uint8_t { kOpaque = 0, kTransparent = 1 };
@@ -68,6 +70,9 @@ class GaussianMap {
   // below the new size take the last kept Gaussians (gaussians/removal_plan.h), the others stay
   // where they are. Returns how many were removed.
   size_t remove_if(const std::vector<uint8_t>& remove);
+  // The same by a plan made beforehand (plan.size == size()): the owners of per-Gaussian arrays
+  // (the map, the optimiser, a device's copy) then follow one plan, made once.
+  size_t remove(const RemovalPlan& plan);
 
   // Gaussian i as add() takes it (its opacity explicit); confidence and stable flag apart.
   GaussianInit gaussian(size_t i) const;

@@ -279,6 +279,9 @@ class GaussianTrainer {
   // `iterations` iterations wherever they run; the loss of each.
   std::vector<double> train(int iterations);
   void prune(KeyframeReport* report);
+  // Removes by a plan over the map (remove_if's, or the pruning's made from its list of removals
+  // without a pass over a mask): the map, the optimiser, the engine and the counters follow it.
+  size_t remove_by(const RemovalPlan& plan);
   // Out of device memory: removes the least useful `fraction` of the map by the budget's measure
   // (as last reviewed: a new render could fail the same way). Returns how many.
   size_t shrink(double fraction);

@@ -76,7 +76,7 @@ class TrainingEngine {
   // Gaussians appended since the last batch, leaves the rest of `adam` stale (see
   // fetch_optimiser_state()), and relies on being told what else the caller changed: the caller
   // may append Gaussians and change stable flags and object IDs freely, removes Gaussians only
-  // through GaussianMap::remove_if with map_removed() given the same mask, and calls
+  // through GaussianMap::remove (or remove_if) with map_removed() given the same plan, and calls
   // map_replaced() after any other change. After a failed batch the engine holds nothing, and the
   // optimiser state restarts from `adam` as last fetched.
   virtual std::vector<double> run(const std::vector<TrainingView>& views, const std::vector<TrainingStep>& steps,
@@ -88,7 +88,7 @@ class TrainingEngine {
     (void)map;
     (void)adam;
   }
-  virtual void map_removed(const std::vector<uint8_t>& remove) { (void)remove; }
+  virtual void map_removed(const RemovalPlan& plan) { (void)plan; }
   virtual void map_replaced() {}
   // The keyframe review (GaussianTrainer::review_gaussians) where the engine holds `map` (after
   // sync()): one pass of `view` with settings, its colour gradient under the probe
