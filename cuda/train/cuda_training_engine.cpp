@@ -52,7 +52,8 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     if (select_temp_) cudaFree(select_temp_);
     if (!clock_.enabled()) return;
     clock_.collect();
-    std::fprintf(stderr, "CUDA training engine, GPU time by stage over %s\n", clock_.summary().c_str());
+    std::fprintf(stderr, "CUDA training engine, GPU time by stage over %s; the views' selections held %.1f %% of the map\n",
+                 clock_.summary().c_str(), selectable_ > 0.0 ? 100.0 * selected_ / selectable_ : 100.0);
   }
 
   std::vector<double> run(const std::vector<gs::TrainingView>& views, const std::vector<gs::TrainingStep>& steps,
@@ -111,6 +112,14 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       }
       pending_ = false;
       resident_->invalidate();
+    }
+  }
+  void map_relabelled(const gs::GaussianMap& map, const std::vector<std::pair<uint32_t, uint32_t>>& changes,
+                      uint64_t flags_before) override {
+    try {
+      resident_->relabel(map, changes, flags_before, pipe_.stream());
+    } catch (const std::exception&) {
+      resident_->forget_flags();  // the next sync sends them whole
     }
   }
   void map_replaced() override {
@@ -261,7 +270,8 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto& cv : spare_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto* b : {&v_rgb_, &v_depth_, &v_ins_}) total += b->bytes();
-    total += rgb8_.bytes() + select_keep_.bytes() + select_offsets_.bytes() + select_index_.bytes() + select_temp_bytes_;
+    total += rgb8_.bytes() + select_keep_.bytes() + select_offsets_.bytes() + select_counts_.bytes() + select_temp_bytes_;
+    for (const auto& b : select_index_) total += b->bytes();
     return total + resident_->bytes() + gradients_.bytes() + pipe_.bytes() + sums_.bytes();
   }
 
@@ -279,9 +289,9 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     // What the host appended or flagged since the last batch, up.
     resident_->sync_up(*map, *adam, stream);
     clock_.end(detail::Stage::kUpload, stream);
-    detail::DeviceTrainable t = resident_->trainable();
-    detail::DeviceGaussians g = resident_->gaussians();
-    select(views, steps, loss, &g, &t);
+    const detail::DeviceTrainable t = resident_->trainable();
+    const detail::DeviceGaussians g = resident_->gaussians();
+    const std::vector<Selection> selection = select(views, steps, loss, g);
     clock_.end(detail::Stage::kSelect, stream);
     const detail::DeviceAttributeGradients grad = gradients_.get(std::max<size_t>(g.count, 1));
     double* sums = sums_.ensure(3 * steps.size(), "loss sums");
@@ -297,7 +307,13 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       gs::RenderSettings settings = loss.settings;
       settings.ins_object = steps[k].object;
       const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(*view.camera, view.T_cw, settings.near);
-      pipe_.forward(g, cam, settings, true);
+      // The pass on the view's selection: the map's entries through its list, or all of them.
+      const Selection& sel = selection[steps[k].view];
+      detail::DeviceGaussians gk = g;
+      detail::DeviceTrainable tk = t;
+      gk.index = tk.index = sel.index;
+      gk.count = tk.count = sel.count;
+      pipe_.forward(gk, cam, settings, true);
       const size_t pixels = cv.pixels;
       // The host's factors (losses.cpp): λ · (1 / weight sum), taken in double, used in float.
       detail::LossFactors f;
@@ -324,8 +340,8 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       go.rgb = v_rgb;
       go.depth = v_depth;
       go.ins = v_ins;
-      pipe_.backward(g, cam, go, grad, /*zero_culled=*/false);
-      detail::launch_adam(t, pipe_.tile_counts(), grad.position, grad.log_scale, grad.rotation, grad.colour, rates,
+      pipe_.backward(gk, cam, go, grad, /*zero_culled=*/false);
+      detail::launch_adam(tk, pipe_.tile_counts(), grad.position, grad.log_scale, grad.rotation, grad.colour, rates,
                           stream);
       check(cudaGetLastError(), "Adam");
       clock_.end(detail::Stage::kAdam, stream);
@@ -351,34 +367,47 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     return losses;
   }
 
-  // The batch's selection (train_select.cu): the passes work on the Gaussians some view of the
-  // batch can bin, an ascending list into the map, when that leaves any out (else on the whole
-  // map, without the list's indirection). The others get no gradient and stay as they are.
-  void select(const std::vector<gs::TrainingView>& views, const std::vector<gs::TrainingStep>& steps,
-              const gs::TrainingLoss& loss, detail::DeviceGaussians* g, detail::DeviceTrainable* t) {
-    const size_t n = g->count;
-    std::vector<uint8_t> used(views.size(), 0);
-    std::vector<gs::CameraView<float>> cams;
-    for (const gs::TrainingStep& s : steps) {
-      if (used[s.view]) continue;
-      used[s.view] = 1;
-      const gs::TrainingView& v = views[s.view];
-      cams.push_back(gs::detail::make_camera_view<float>(*v.camera, v.T_cw, loss.settings.near));
-    }
+  // A view's passes work on the map's entries index[0 .. count), or on the first count (all).
+  struct Selection {
+    const uint32_t* index = nullptr;
+    size_t count = 0;
+  };
+  // The list below this share of the map: above, the list's indirection costs the passes about
+  // what leaving the rest out saves.
+  static constexpr double kListBelow = 0.9;
+
+  // The batch's selection (train_select.cu): for each view the steps name, the Gaussians its
+  // projection keeps, so that its passes (projection, binning, gradients, Adam) grow with what it
+  // sees rather than with the map; the others get no gradient from it. One wait for the counts.
+  std::vector<Selection> select(const std::vector<gs::TrainingView>& views, const std::vector<gs::TrainingStep>& steps,
+                                const gs::TrainingLoss& loss, const detail::DeviceGaussians& g) {
+    const size_t n = g.count;
+    std::vector<Selection> out(views.size(), Selection{nullptr, n});
+    std::vector<size_t> used;
+    for (const gs::TrainingStep& s : steps)
+      if (std::find(used.begin(), used.end(), s.view) == used.end()) used.push_back(s.view);
+    while (select_index_.size() < used.size()) select_index_.push_back(std::make_unique<DeviceBuffer<uint32_t>>());
     uint32_t* keep = select_keep_.ensure(n + 1, "batch selection");
     uint32_t* offsets = select_offsets_.ensure(n + 1, "batch selection");
-    uint32_t* index = select_index_.ensure(std::max<size_t>(n, 1), "batch selection");
+    uint32_t* counts = select_counts_.ensure(used.size(), "batch selection");
     const cudaStream_t stream = pipe_.stream();
-    check(detail::select_in_views(*g, cams.data(), cams.size(), keep, offsets, index, &select_temp_,
-                                  &select_temp_bytes_, stream),
+    for (size_t k = 0; k < used.size(); ++k) {
+      const gs::TrainingView& v = views[used[k]];
+      const gs::CameraView<float> cam = gs::detail::make_camera_view<float>(*v.camera, v.T_cw, loss.settings.near);
+      uint32_t* index = select_index_[k]->ensure(std::max<size_t>(n, 1), "batch selection");
+      check(detail::select_in_view(g, cam, keep, offsets, index, counts + k, &select_temp_, &select_temp_bytes_,
+                                   stream),
+            "batch selection");
+    }
+    std::vector<uint32_t> selected(used.size());
+    check(cudaMemcpyAsync(selected.data(), counts, used.size() * sizeof(uint32_t), cudaMemcpyDeviceToHost, stream),
           "batch selection");
-    uint32_t selected = 0;
-    check(cudaMemcpyAsync(&selected, offsets + n, sizeof selected, cudaMemcpyDeviceToHost, stream), "batch selection");
     check(cudaStreamSynchronize(stream), "batch selection");
-    selected_ = selected;
-    if (selected == n) return;
-    g->index = t->index = index;
-    g->count = t->count = selected;
+    for (size_t k = 0; k < used.size(); ++k) {
+      selected_ += selected[k], selectable_ += n;
+      if (selected[k] < kListBelow * static_cast<double>(n)) out[used[k]] = Selection{select_index_[k]->get(), selected[k]};
+    }
+    return out;
   }
 
   // Keeps the images of `views` on the device (new keys up, keys no longer in the window freed).
@@ -453,11 +482,14 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   DeviceBuffer<uint8_t> review_votes_;
   DeviceBuffer<uint2> review_relabels_;
   DeviceBuffer<uint8_t> flag_bytes_;  // flag_prune()'s
-  // select()'s scratch and list; the scan's scratch; the size of the latest batch's selection.
-  DeviceBuffer<uint32_t> select_keep_, select_offsets_, select_index_;
+  // select()'s scratch, counts and lists (one per view of a batch); the scan's scratch; the sums
+  // of the selections' sizes and of the map's (the share the passes worked on, with the stage
+  // times).
+  DeviceBuffer<uint32_t> select_keep_, select_offsets_, select_counts_;
+  std::vector<std::unique_ptr<DeviceBuffer<uint32_t>>> select_index_;
   void* select_temp_ = nullptr;
   size_t select_temp_bytes_ = 0;
-  size_t selected_ = 0;
+  double selected_ = 0.0, selectable_ = 0.0;
   // Deferred attributes (defer_attributes()): asked for; the device's newer than the host map's;
   // what a failed removal brought down for fetch_attributes().
   bool defer_ = false;

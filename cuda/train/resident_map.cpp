@@ -112,6 +112,28 @@ void ResidentMap::wait() const {
   if (stream_) check(cudaStreamSynchronize(stream_), "resident map");
 }
 
+void ResidentMap::relabel(const gs::GaussianMap& map, const std::vector<std::pair<uint32_t, uint32_t>>& changes,
+                          uint64_t flags_before, cudaStream_t stream) {
+  if (!valid_ || flags_map_ != &map || flags_revision_ != flags_before) return;
+  if (changes.empty()) {
+    flags_revision_ = map.flags_revision();
+    return;
+  }
+  std::vector<uint2> pairs(changes.size());
+  for (size_t k = 0; k < changes.size(); ++k) {
+    if (changes[k].first >= count_) return;  // beyond what is held: the next sync sends them all
+    pairs[k] = make_uint2(changes[k].first, changes[k].second);
+  }
+  flags_map_ = nullptr;  // until applied
+  uint2* d = relabels_.ensure(pairs.size(), "relabels");
+  check(cudaMemcpyAsync(d, pairs.data(), pairs.size() * sizeof(uint2), cudaMemcpyHostToDevice, stream), "relabels");
+  launch_apply_relabels(pairs.size(), d, object_id_.get(), stream);
+  check(cudaGetLastError(), "relabels");
+  stream_ = stream;
+  flags_map_ = &map;
+  flags_revision_ = map.flags_revision();
+}
+
 void ResidentMap::remove(const gs::RemovalPlan& plan, cudaStream_t stream) {
   if (!valid_) return;
   if (plan.size < count_) {  // not a plan over what is held

@@ -58,6 +58,12 @@ class ResidentMap {
  public:
   // Brings the device copy in step with the host's `map` and `adam` (adam sized for the map).
   void sync_up(const gs::GaussianMap& map, const gs::GaussianAdam& adam, cudaStream_t stream);
+  // The host relabelled Gaussians of `map` (GaussianMap::relabel_each(changes)) whose flags
+  // revision was flags_before: where the device held the flags of that revision, it applies the
+  // same changes and holds the new revision's (no whole upload at the next sync_up()).
+  void relabel(const gs::GaussianMap& map, const std::vector<std::pair<uint32_t, uint32_t>>& changes,
+               uint64_t flags_before, cudaStream_t stream);
+  void forget_flags() { flags_map_ = nullptr; }
   // The host removed Gaussians by `plan` (over its map as it was: the resident Gaussians first,
   // then any appended since the last sync_up()).
   void remove(const gs::RemovalPlan& plan, cudaStream_t stream);
@@ -163,6 +169,7 @@ class ResidentMap {
   GrowingBuffer<uint8_t> votes_;
   // remove()'s plan on the device (gs::RemovalPlan's holes and sources).
   DeviceBuffer<uint32_t> holes_, sources_;
+  DeviceBuffer<uint2> relabels_;  // relabel()'s changes
 
  public:
   ResidentMap() = default;

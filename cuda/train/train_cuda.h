@@ -68,15 +68,19 @@ void launch_adam(const DeviceTrainable& t, const uint32_t* tile_count, const flo
                  const float* grad_log_scale, const float* grad_rotation, const float* grad_colour,
                  const AdamRates& rates, cudaStream_t stream);
 
-// The training batch's selection (train_select.cu): into index[0 .. offsets[n]) (ascending), the
-// Gaussians of g (all n of the map: g.index null) that project_footprint() keeps in at least one
-// of the views — all that any pass of the batch can bin; the others get no gradient and cannot
-// move, so a batch that works on the list alone trains as one on the whole map. keep and offsets
-// hold n + 1 entries of scratch (keep[i]: selected), index n; temp is the scan's scratch, grown as
-// needed (raster_binning.cu's exclusive_scan). Asynchronous: the count is offsets[n] on the device.
-cudaError_t select_in_views(const DeviceGaussians& g, const gs::CameraView<float>* views, size_t view_count,
-                            uint32_t* keep, uint32_t* offsets, uint32_t* index, void** temp, size_t* temp_bytes,
-                            cudaStream_t stream);
+// The training batch's selection (train_select.cu): into index[0 .. *count) (ascending), the
+// Gaussians of g (all n of the map: g.index null) that project_footprint() keeps in the view —
+// all that its passes can bin; the others get no gradient from it, so a pass that works on the
+// list alone trains as one on the whole map. keep and offsets hold n + 1 entries of scratch
+// (keep[i]: selected), index n; temp is the scan's scratch, grown as needed (raster_binning.cu's
+// exclusive_scan). Asynchronous: *count is on the device.
+cudaError_t select_in_view(const DeviceGaussians& g, const gs::CameraView<float>& cam, uint32_t* keep,
+                           uint32_t* offsets, uint32_t* index, uint32_t* count, void** temp, size_t* temp_bytes,
+                           cudaStream_t stream);
+
+// Sets object_id[pairs[k].x] = pairs[k].y for k < count: the host's relabelling (GaussianMap::
+// relabel_each) applied to the device's copy instead of sending every ID again (train_review.cu).
+void launch_apply_relabels(size_t count, const uint2* pairs, uint32_t* object_id, cudaStream_t stream);
 
 // The resident map's remove() (train_compact.cu), by the host's RemovalPlan
 // (dqo_map/gaussians/removal_plan.h): a[holes[k]·width + c] = a[sources[k]·width + c] for every

@@ -1,6 +1,7 @@
 // The keyframe review on the device (CudaTrainingEngine::review): the probe's output gradient from
 // the view's labels, then math/review.h's step for every Gaussian on the colour sums of the
-// rasteriser's 2D gradients, the trainer's counters updated in place and the relabels listed.
+// rasteriser's 2D gradients, the trainer's counters updated in place and the relabels listed; and
+// the relabels the host then makes, applied to the device's object IDs.
 
 #include "train_cuda.h"
 
@@ -41,6 +42,11 @@ __global__ void review_kernel(size_t n, const float* position, const uint32_t* o
   relabels[k] = make_uint2(static_cast<uint32_t>(i), new_label);  // room for n: never out of bounds
 }
 
+__global__ void apply_relabels_kernel(size_t count, const uint2* pairs, uint32_t* object_id) {
+  const size_t k = static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k < count) object_id[pairs[k].x] = pairs[k].y;
+}
+
 __global__ void start_counters_kernel(size_t from, size_t n, float* usefulness, uint16_t* invisible, uint8_t* votes) {
   const size_t i = from + static_cast<size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i >= n) return;
@@ -69,6 +75,11 @@ void launch_review(size_t n, const float* position, const uint32_t* object_id, c
   if (n == 0) return;
   review_kernel<<<blocks(n), kBlock, 0, stream>>>(n, position, object_id, tile_count, grad2d, view, settings,
                                                   usefulness, invisible, votes, relabels, relabel_count);
+}
+
+void launch_apply_relabels(size_t count, const uint2* pairs, uint32_t* object_id, cudaStream_t stream) {
+  if (count == 0) return;
+  apply_relabels_kernel<<<blocks(count), kBlock, 0, stream>>>(count, pairs, object_id);
 }
 
 }  // namespace dqo::cuda::detail

@@ -381,8 +381,10 @@ void GaussianTrainer::review_gaussians(const StoredKeyframe& kf, const RenderSta
 // votes start over). (It used to leave the map and come back appended, which cost a compaction
 // of every array per keyframe and the optimiser's moments of the Gaussians that moved.)
 void GaussianTrainer::relabel_gaussians(const std::vector<std::pair<uint32_t, uint32_t>>& changes) {
+  const uint64_t flags_before = map_.flags_revision();
   const size_t n = map_.relabel_each(changes);
   if (n == 0) return;
+  if (engine_) engine_->map_relabelled(map_, changes, flags_before);
   relabelled_ += n;
   for (const auto& [index, id] : changes) relabel_votes_[index] = 0;
 }

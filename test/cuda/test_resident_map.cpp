@@ -132,6 +132,17 @@ TEST(ResidentMap, FollowsTheHostsRemovalsAppendsAndFlags) {
       // Nothing changed since: nothing goes up.
       resident.sync_up(map, adam, stream);
       EXPECT_EQ(resident.bytes_sent_last(), 0u) << where;
+      // A review's few relabels, applied on the device as on the host: the flags stay current,
+      // nothing goes up, the IDs agree. Told with a stale revision, it sends them whole instead.
+      std::vector<std::pair<uint32_t, uint32_t>> changes;
+      for (size_t i = round; i < map.size(); i += 97) changes.emplace_back(static_cast<uint32_t>(i), 7u + round);
+      const bool stale = round == 5;
+      const uint64_t flags_before = map.flags_revision();
+      ASSERT_GT(map.relabel_each(changes), 0u) << where;
+      resident.relabel(map, changes, stale ? flags_before + 12345 : flags_before, stream);
+      resident.sync_up(map, adam, stream);
+      EXPECT_EQ(resident.bytes_sent_last(), stale ? map.size() * 5 : 0u) << where << ", relabelled";
+      expect_same(resident, map, adam, stream, where + ", relabelled");
     }
     // A map changed behind its back (smaller than what it holds): everything goes up again.
     gs::GaussianMap smaller = map.subset({0, 5, 7, 11});

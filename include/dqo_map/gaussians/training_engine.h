@@ -89,6 +89,16 @@ class TrainingEngine {
     (void)adam;
   }
   virtual void map_removed(const RemovalPlan& plan) { (void)plan; }
+  // The caller relabelled Gaussians of `map` by GaussianMap::relabel_each(changes); flags_before
+  // is the map's flags_revision() before. An engine that holds the map's flags may apply the same
+  // changes to its copy rather than take every flag again at the next sync (a few relabels a
+  // keyframe against 5 bytes a Gaussian).
+  virtual void map_relabelled(const GaussianMap& map, const std::vector<std::pair<uint32_t, uint32_t>>& changes,
+                              uint64_t flags_before) {
+    (void)map;
+    (void)changes;
+    (void)flags_before;
+  }
   virtual void map_replaced() {}
   // The keyframe review (GaussianTrainer::review_gaussians) where the engine holds `map` (after
   // sync()): one pass of `view` with settings, its colour gradient under the probe
