@@ -43,12 +43,22 @@ class DeviceBuffer {
   DeviceBuffer(const DeviceBuffer&) = delete;
   DeviceBuffer& operator=(const DeviceBuffer&) = delete;
   ~DeviceBuffer() { release(); }
+  // Room for n elements. A buffer that grows again takes a quarter more than asked (where the
+  // device has it): the per-Gaussian scratch follows a growing map, and each reallocation waits for
+  // the device (cudaFree) — a dozen of them a keyframe otherwise.
   T* ensure(size_t n, const char* what) {
     if (n <= capacity_ && ptr_) return ptr_;
+    const size_t exact = std::max<size_t>(n, 1);
+    const size_t roomy = ptr_ ? std::max(exact, capacity_ + capacity_ / 4) : exact;
     release();
-    const size_t want = std::max<size_t>(n, 1);
-    check(cudaMalloc(reinterpret_cast<void**>(&ptr_), want * sizeof(T)), what);
-    capacity_ = want;
+    if (roomy > exact && cudaMalloc(reinterpret_cast<void**>(&ptr_), roomy * sizeof(T)) == cudaSuccess) {
+      capacity_ = roomy;
+      return ptr_;
+    }
+    if (roomy > exact) cudaGetLastError();  // clears the failed allocation's error; the exact size next
+    ptr_ = nullptr;
+    check(cudaMalloc(reinterpret_cast<void**>(&ptr_), exact * sizeof(T)), what);
+    capacity_ = exact;
     return ptr_;
   }
   void release() {
