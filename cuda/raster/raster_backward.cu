@@ -1,7 +1,8 @@
 // Stage 4 of the CUDA rasteriser: the backward pass, the CPU reference's (src/gaussians/
 // raster_backward.cpp) by the same per-pixel steps (math/composite.h, math/alpha.h). One block per
 // tile, one thread per pixel: the tile's list is walked back to front from the last contributor of
-// any of its pixels, in shared-memory batches; a pixel takes part from its own last contributor on,
+// its pixels, staged through shared memory or by each warp on its own as in the forward pass
+// (raster_forward.cu, WalkOrder); a pixel takes part from its own last contributor on,
 // reconstructs the transmittance in front of each Gaussian from its final one and adds that
 // Gaussian's share of the 2D gradients. As in the forward pass, a warp (an 8×4 block) visits only
 // the splats whose α box meets its block, found 32 at a time by one ballot. A warp sums its
@@ -62,111 +63,146 @@ __device__ __forceinline__ void warp_add_grad2d(const Grad2D& g, float* dst) {
   if ((lane & 1) == 0 && real && v[0] != 0.f) atomicAdd(dst + c, v[0]);
 }
 
-__global__ void __launch_bounds__(kThreads)
-    backward_kernel(int width, int height, int tiles_x, const uint32_t* tile_order, const uint2* ranges,
-                    const uint32_t* sorted_ids, const DeviceSplat* splats, ForwardSettings settings,
-                    ForwardState state, ImageGradientsDevice grad_out, Grad2D* grad2d) {
-  const int tile = static_cast<int>(tile_order[blockIdx.x]);
-  const TileThread th = tile_thread(tile, tiles_x, width, height);
-  const int x = th.x, y = th.y;
-  const int lane = static_cast<int>(threadIdx.x % 32);
-  const bool inside = x < width && y < height;
-  const size_t pix = inside ? static_cast<size_t>(y) * width + x : 0;
-
-  // The pixel's output gradients, as the CPU sets them up.
+// One pixel's state walking back: its output gradients (as the CPU sets them up) and what the
+// steps carry from one Gaussian to the one in front.
+struct PixelBackward {
   float t_final = 1.f;
   uint32_t n_contrib = 0;
   gs::Vec3<float> v_rgb{0.f, 0.f, 0.f};
   float v_depth = 0.f, v_alpha_px = 0.f, v_ins = 0.f, v_surface = 0.f;
   gs::SurfaceAccum<float> sa = gs::surface_accum_start<float>();
   gs::SurfaceBack<float> surface_back{0.f, 0.f};
+  gs::PixelAccumBack<float> back;
+};
+
+__device__ __forceinline__ PixelBackward start_pixel(bool inside, size_t pix, const ForwardSettings& settings,
+                                                     const ForwardState& state, const ImageGradientsDevice& grad_out) {
+  PixelBackward p;
   if (inside) {
-    t_final = state.t_final[pix];
-    n_contrib = state.n_contrib[pix];
-    if (grad_out.rgb) v_rgb = {grad_out.rgb[3 * pix], grad_out.rgb[3 * pix + 1], grad_out.rgb[3 * pix + 2]};
-    v_depth = grad_out.depth ? grad_out.depth[pix] : 0.f;
-    v_alpha_px = grad_out.alpha ? grad_out.alpha[pix] : 0.f;
-    v_ins = grad_out.ins ? grad_out.ins[pix] : 0.f;
+    p.t_final = state.t_final[pix];
+    p.n_contrib = state.n_contrib[pix];
+    if (grad_out.rgb) p.v_rgb = {grad_out.rgb[3 * pix], grad_out.rgb[3 * pix + 1], grad_out.rgb[3 * pix + 2]};
+    p.v_depth = grad_out.depth ? grad_out.depth[pix] : 0.f;
+    p.v_alpha_px = grad_out.alpha ? grad_out.alpha[pix] : 0.f;
+    p.v_ins = grad_out.ins ? grad_out.ins[pix] : 0.f;
     if (settings.surface_depth) {
-      sa = state.surface[pix];
-      if (sa.weight > 0.f) {
-        v_surface = v_depth;
-        surface_back = gs::surface_back_start(sa);
+      p.sa = state.surface[pix];
+      if (p.sa.weight > 0.f) {
+        p.v_surface = p.v_depth;
+        p.surface_back = gs::surface_back_start(p.sa);
       }
-      v_depth = 0.f;
+      p.v_depth = 0.f;
     } else if (settings.normalise_depth) {
-      const float accumulated = 1.f - t_final;
+      const float accumulated = 1.f - p.t_final;
       if (accumulated > kNormaliseMinAlpha) {
-        v_alpha_px -= v_depth * state.depth_raw[pix] / (accumulated * accumulated);
-        v_depth /= accumulated;
+        p.v_alpha_px -= p.v_depth * state.depth_raw[pix] / (accumulated * accumulated);
+        p.v_depth /= accumulated;
       } else {
-        v_depth = 0.f;
+        p.v_depth = 0.f;
       }
     }
   }
-  gs::PixelAccumBack<float> back = gs::pixel_accum_back_start(t_final);
+  p.back = gs::pixel_accum_back_start(p.t_final);
+  return p;
+}
+
+// The pixel's share of the 2D gradients of the splat at 0-based list position `pos`, into *g;
+// false where the pixel takes no part (behind its last contributor, or α below 1/255).
+__device__ __forceinline__ bool splat_gradient(const DeviceSplat& s, int pos, float x, float y,
+                                               const gs::Vec3<float>& bg, PixelBackward* p, Grad2D* g) {
+  if (static_cast<uint32_t>(pos) >= p->n_contrib) return false;
+  float alpha, vis;
+  if (!gs::evaluate_alpha(s.conic, s.mean2d, s.opacity, x, y, &alpha, &vis)) return false;
+  gs::Vec3<float> v_colour{0.f, 0.f, 0.f};
+  float v_z = 0.f;
+  float v_alpha = gs::composite_step_vjp(alpha, s.colour, s.depth, p->t_final, bg, p->v_rgb, p->v_depth, p->v_alpha_px,
+                                         &p->back, &v_colour, &v_z);
+  if (s.counts_for_ins) v_alpha += p->v_ins;
+  if (p->v_surface != 0.f) {
+    const uint32_t position = static_cast<uint32_t>(pos) + 1;
+    if (position >= p->sa.first && position <= p->sa.last)
+      v_alpha += gs::surface_step_vjp(alpha, s.depth, gs::surface_depth(p->sa), p->sa.weight, p->v_surface,
+                                      &p->surface_back, &v_z);
+  }
+  gs::Sym2<float> v_conic{0.f, 0.f, 0.f};
+  gs::Vec2<float> v_mean{0.f, 0.f};
+  float v_opacity = 0.f;
+  gs::evaluate_alpha_vjp(s.conic, s.mean2d, s.opacity, x, y, vis, v_alpha, &v_conic, &v_mean, &v_opacity);
+  *g = Grad2D{{v_mean.x, v_mean.y}, {v_conic.xx, v_conic.xy, v_conic.yy}, v_opacity,
+              {v_colour.x, v_colour.y, v_colour.z}, v_z};
+  return true;
+}
+
+template <WalkOrder kWalk>
+__global__ void __launch_bounds__(kThreads)
+    backward_kernel(int width, int height, int tiles_x, const uint32_t* tile_order, const uint2* ranges,
+                    const uint32_t* sorted_ids, const DeviceSplat* splats, ForwardSettings settings,
+                    ForwardState state, ImageGradientsDevice grad_out, Grad2D* grad2d) {
+  const int tile = static_cast<int>(tile_order[blockIdx.x]);
+  const TileThread th = tile_thread(tile, tiles_x, width, height);
+  const int lane = static_cast<int>(threadIdx.x % 32);
+  const bool inside = th.x < width && th.y < height;
+  const float x = float(th.x), y = float(th.y);
+  PixelBackward p = start_pixel(inside, inside ? static_cast<size_t>(th.y) * width + th.x : 0, settings, state,
+                                grad_out);
   const gs::Vec3<float> bg{settings.background[0], settings.background[1], settings.background[2]};
-
-  const uint32_t max_contrib = __reduce_max_sync(kFull, n_contrib);
-  __shared__ uint32_t block_max[kThreads / 32];
-  if (threadIdx.x % 32 == 0) block_max[threadIdx.x / 32] = max_contrib;
-  __syncthreads();
-  uint32_t last = 0;
-  for (int w = 0; w < kThreads / 32; ++w) last = max(last, block_max[w]);
-
-  __shared__ DeviceSplat batch[kThreads];
-  __shared__ uint32_t batch_id[kThreads];
+  const int max_contrib = static_cast<int>(__reduce_max_sync(kFull, p.n_contrib));  // the warp's
   const uint2 range = ranges[tile];
-  // Positions [0, last) of the list, back to front, kThreads at a time.
-  for (int end = static_cast<int>(last); end > 0; end -= kThreads) {
-    const int begin = max(0, end - kThreads);
+
+  if constexpr (kWalk == WalkOrder::kStaged) {
+    __shared__ uint32_t block_max[kThreads / 32];
+    if (lane == 0) block_max[threadIdx.x / 32] = static_cast<uint32_t>(max_contrib);
     __syncthreads();
-    const int k = begin + static_cast<int>(threadIdx.x);
-    if (k < end) {
-      batch_id[threadIdx.x] = sorted_ids[range.x + k];
-      batch[threadIdx.x] = splats[batch_id[threadIdx.x]];
+    uint32_t last = 0;
+    for (int w = 0; w < kThreads / 32; ++w) last = max(last, block_max[w]);
+    __shared__ DeviceSplat batch[kThreads];
+    __shared__ uint32_t batch_id[kThreads];
+    // Positions [0, last) of the list, back to front, kThreads at a time.
+    for (int end = static_cast<int>(last); end > 0; end -= kThreads) {
+      const int begin = max(0, end - kThreads);
+      __syncthreads();
+      const int k = begin + static_cast<int>(threadIdx.x);
+      if (k < end) {
+        batch_id[threadIdx.x] = sorted_ids[range.x + k];
+        batch[threadIdx.x] = splats[batch_id[threadIdx.x]];
+      }
+      __syncthreads();
+      // 32 splats at a time, back to front, those before the warp's last contributor whose box
+      // meets its block.
+      const int warp_end = min(end, max_contrib);
+      for (int r = ((end - begin - 1) / 32) * 32; r >= 0; r -= 32) {
+        const int j = r + lane;
+        uint32_t hits = __ballot_sync(kFull, begin + j < warp_end && box_meets_block(batch[j], th));
+        while (hits != 0) {
+          const int b = 31 - __clz(hits);
+          hits &= ~(1u << b);
+          Grad2D g{};
+          const bool contributes = splat_gradient(batch[r + b], begin + r + b, x, y, bg, &p, &g);
+          // Warps where no pixel took part skip the sums (most, for small Gaussians).
+          if (__any_sync(kFull, contributes))
+            warp_add_grad2d(g, reinterpret_cast<float*>(&grad2d[batch_id[r + b]]));
+        }
+      }
     }
-    __syncthreads();
-    // 32 splats at a time, back to front, those before the warp's last contributor whose box
-    // meets its block.
-    for (int r = ((end - begin - 1) / 32) * 32; r >= 0; r -= 32) {
-      const int j = r + lane;
-      const int warp_end = min(end, static_cast<int>(max_contrib));
-      uint32_t hits = __ballot_sync(kFull, begin + j < warp_end && box_meets_block(batch[j], th));
+  } else {
+    // The warp walks positions [0, its last contributor) on its own, back to front, 32 at a time.
+    for (int r = ((max_contrib - 1) / 32) * 32; max_contrib > 0 && r >= 0; r -= 32) {
+      const int k = r + lane;
+      uint32_t id = 0;
+      bool meets = false;
+      if (k < max_contrib) {
+        id = sorted_ids[range.x + k];
+        meets = box_meets_block(splats[id], th);
+      }
+      uint32_t hits = __ballot_sync(kFull, meets);
       while (hits != 0) {
         const int b = 31 - __clz(hits);
         hits &= ~(1u << b);
-        const int pos = begin + r + b;
-        const DeviceSplat& s = batch[pos - begin];
+        const uint32_t sid = __shfl_sync(kFull, id, b);
+        const DeviceSplat s = splats[sid];  // the same for every lane: one load, broadcast
         Grad2D g{};
-        bool contributes = false;
-        if (static_cast<uint32_t>(pos) < n_contrib) {
-          float alpha, vis;
-          if (gs::evaluate_alpha(s.conic, s.mean2d, s.opacity, float(x), float(y), &alpha, &vis)) {
-            gs::Vec3<float> v_colour{0.f, 0.f, 0.f};
-            float v_z = 0.f;
-            float v_alpha = gs::composite_step_vjp(alpha, s.colour, s.depth, t_final, bg, v_rgb, v_depth, v_alpha_px,
-                                                   &back, &v_colour, &v_z);
-            if (s.counts_for_ins) v_alpha += v_ins;
-            if (v_surface != 0.f) {
-              const uint32_t position = static_cast<uint32_t>(pos) + 1;
-              if (position >= sa.first && position <= sa.last)
-                v_alpha += gs::surface_step_vjp(alpha, s.depth, gs::surface_depth(sa), sa.weight, v_surface,
-                                                &surface_back, &v_z);
-            }
-            gs::Sym2<float> v_conic{0.f, 0.f, 0.f};
-            gs::Vec2<float> v_mean{0.f, 0.f};
-            float v_opacity = 0.f;
-            gs::evaluate_alpha_vjp(s.conic, s.mean2d, s.opacity, float(x), float(y), vis, v_alpha, &v_conic, &v_mean,
-                                   &v_opacity);
-            g = Grad2D{{v_mean.x, v_mean.y}, {v_conic.xx, v_conic.xy, v_conic.yy}, v_opacity,
-                       {v_colour.x, v_colour.y, v_colour.z}, v_z};
-            contributes = true;
-          }
-        }
-        // Warps where no pixel took part skip the sums (most, for small Gaussians).
-        if (__any_sync(kFull, contributes))
-          warp_add_grad2d(g, reinterpret_cast<float*>(&grad2d[batch_id[pos - begin]]));
+        const bool contributes = splat_gradient(s, r + b, x, y, bg, &p, &g);
+        if (__any_sync(kFull, contributes)) warp_add_grad2d(g, reinterpret_cast<float*>(&grad2d[sid]));
       }
     }
   }
@@ -206,13 +242,18 @@ __global__ void project_vjp_kernel(DeviceGaussians g, gs::CameraView<float> cam,
 
 void launch_backward(int width, int height, const uint32_t* tile_order, const uint2* ranges,
                      const uint32_t* sorted_ids, const DeviceSplat* splats, const ForwardSettings& settings,
-                     const ForwardState& state, const ImageGradientsDevice& grad_out, Grad2D* grad2d,
+                     const ForwardState& state, const ImageGradientsDevice& grad_out, Grad2D* grad2d, WalkOrder walk,
                      cudaStream_t stream) {
   const int tiles_x = (width + kTileSize - 1) / kTileSize, tiles_y = (height + kTileSize - 1) / kTileSize;
   if (tiles_x * tiles_y == 0) return;
-  backward_kernel<<<tiles_x * tiles_y, kThreads, 0, stream>>>(width, height, tiles_x, tile_order, ranges, sorted_ids,
-                                                               splats, settings, state, grad_out, grad2d);
+  if (walk == WalkOrder::kStaged)
+    backward_kernel<WalkOrder::kStaged><<<tiles_x * tiles_y, kThreads, 0, stream>>>(
+        width, height, tiles_x, tile_order, ranges, sorted_ids, splats, settings, state, grad_out, grad2d);
+  else
+    backward_kernel<WalkOrder::kPerWarp><<<tiles_x * tiles_y, kThreads, 0, stream>>>(
+        width, height, tiles_x, tile_order, ranges, sorted_ids, splats, settings, state, grad_out, grad2d);
 }
+
 
 void launch_project_vjp(const DeviceGaussians& g, const gs::CameraView<float>& cam, const uint32_t* tile_count,
                         const Grad2D* grad2d, float* grad_position, float* grad_log_scale, float* grad_rotation,

@@ -225,18 +225,30 @@ void launch_tile_ranges(size_t pairs, const uint64_t* sorted_keys, int depth_bit
 // tail of tiles in image order). `keys` and `ids` are scratch of `tiles` entries.
 cudaError_t order_tiles(size_t tiles, const uint2* ranges, uint32_t* keys, uint32_t* ids, uint32_t* keys_out,
                         uint32_t* tile_order, void** temp, size_t* temp_bytes, cudaStream_t stream);
+// How the compositing kernels walk a tile's list (raster_forward.cu): staged through shared memory
+// by the whole block, or by each warp on its own. The same images and gradients either way; the
+// pass picks by its lists' mean length (walk_for()).
+enum class WalkOrder { kStaged, kPerWarp };
+// From this many pairs a tile on (mean), each warp walks on its own: measured on an H100 over the
+// comparison maps (BENCHMARKS.md), the per-warp walk is 8 % faster at 1 220 a tile (2M), even at
+// 610 (1M) and 4 % slower at 305 (500k) and on room's training passes.
+constexpr double kPerWarpFromPairsPerTile = 900.0;
+inline WalkOrder walk_for(size_t pairs, size_t tiles) {
+  return static_cast<double>(pairs) >= kPerWarpFromPairsPerTile * static_cast<double>(tiles) ? WalkOrder::kPerWarp
+                                                                                             : WalkOrder::kStaged;
+}
 // Stage 3: one block per tile (taken in tile_order), one thread per pixel, front to back with
 // early stop.
 void launch_forward(int width, int height, const uint32_t* tile_order, const uint2* ranges,
                     const uint32_t* sorted_ids, const DeviceSplat* splats, const ForwardSettings& settings,
-                    const ForwardImages& out, const ForwardState& state, cudaStream_t stream);
+                    const ForwardImages& out, const ForwardState& state, WalkOrder walk, cudaStream_t stream);
 // Stage 4: the tile lists walked back to front per pixel, gradients of each Gaussian's 2D
 // quantities summed into grad2d ([N], zero for the binned Gaussians); then each binned Gaussian's
 // through project_gaussian_vjp() into the attribute gradients (written; the culled ones' zeroed
 // with zero_culled, else left as they are).
 void launch_backward(int width, int height, const uint32_t* tile_order, const uint2* ranges,
                      const uint32_t* sorted_ids, const DeviceSplat* splats, const ForwardSettings& settings,
-                     const ForwardState& state, const ImageGradientsDevice& grad_out, Grad2D* grad2d,
+                     const ForwardState& state, const ImageGradientsDevice& grad_out, Grad2D* grad2d, WalkOrder walk,
                      cudaStream_t stream);
 void launch_project_vjp(const DeviceGaussians& g, const gs::CameraView<float>& cam, const uint32_t* tile_count,
                         const Grad2D* grad2d, float* grad_position, float* grad_log_scale, float* grad_rotation,

@@ -125,7 +125,8 @@ void RasterPipeline::forward(const DeviceGaussians& g, const gs::CameraView<floa
     kept.depth_raw = depth_raw_.ensure(pixels, "raw depth");
     if (settings.surface_depth) kept.surface = surface_.ensure(pixels, "surface");
   }
-  launch_forward(width, height, tile_order, ranges, sorted_ids, splats, fs, images_, kept, stream_);
+  walk_ = walk_for(pairs, tiles);
+  launch_forward(width, height, tile_order, ranges, sorted_ids, splats, fs, images_, kept, walk_, stream_);
   settings_ = fs;
   state_ = kept;
   check(cudaGetLastError(), "compositing");
@@ -158,7 +159,7 @@ void RasterPipeline::backward_2d(const ImageGradientsDevice& grad_out) {
   grad2d_zeroed_ = false;
   mark(6);
   launch_backward(width_, height_, tile_order_.get(), ranges_.get(), sorted_ids_.get(), splats_.get(), settings_,
-                  state_, grad_out, grad2d, stream_);
+                  state_, grad_out, grad2d, walk_, stream_);
   check(cudaGetLastError(), "backward");
 }
 

@@ -87,6 +87,7 @@ class RasterPipeline {
   cudaEvent_t events_[8] = {};
   StageClock* clock_ = nullptr;
   size_t n_ = 0, pairs_ = 0;
+  WalkOrder walk_ = WalkOrder::kStaged;  // the latest forward's, which its backward follows
   int width_ = 0, height_ = 0;
   ForwardSettings settings_;
   ForwardState state_;

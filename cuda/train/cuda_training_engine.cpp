@@ -52,8 +52,11 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     if (select_temp_) cudaFree(select_temp_);
     if (!clock_.enabled()) return;
     clock_.collect();
-    std::fprintf(stderr, "CUDA training engine, GPU time by stage over %s; the views' selections held %.1f %% of the map\n",
-                 clock_.summary().c_str(), selectable_ > 0.0 ? 100.0 * selected_ / selectable_ : 100.0);
+    std::fprintf(stderr,
+                 "CUDA training engine, GPU time by stage over %s; the views' selections held %.1f %% of the map; "
+                 "%.0f pairs a tile\n",
+                 clock_.summary().c_str(), selectable_ > 0.0 ? 100.0 * selected_ / selectable_ : 100.0,
+                 tile_sum_ > 0.0 ? pair_sum_ / tile_sum_ : 0.0);
   }
 
   std::vector<double> run(const std::vector<gs::TrainingView>& views, const std::vector<gs::TrainingStep>& steps,
@@ -314,6 +317,8 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       gk.index = tk.index = sel.index;
       gk.count = tk.count = sel.count;
       pipe_.forward(gk, cam, settings, true);
+      pair_sum_ += static_cast<double>(pipe_.pairs());
+      tile_sum_ += std::ceil(view.camera->width / 16.0) * std::ceil(view.camera->height / 16.0);
       const size_t pixels = cv.pixels;
       // The host's factors (losses.cpp): λ · (1 / weight sum), taken in double, used in float.
       detail::LossFactors f;
@@ -490,6 +495,7 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
   void* select_temp_ = nullptr;
   size_t select_temp_bytes_ = 0;
   double selected_ = 0.0, selectable_ = 0.0;
+  double pair_sum_ = 0.0, tile_sum_ = 0.0;  // the training passes' pairs and tiles (their lists' mean length)
   // Deferred attributes (defer_attributes()): asked for; the device's newer than the host map's;
   // what a failed removal brought down for fetch_attributes().
   bool defer_ = false;

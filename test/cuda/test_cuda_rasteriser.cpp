@@ -12,6 +12,7 @@
 #include <limits>
 #include <random>
 
+#include "../../cuda/raster/raster_cuda.h"
 #include "../gaussians/raster_test_util.h"
 #include "dqo_map/cuda/cuda_rasteriser.h"
 #include "dqo_map/cuda/device_info.h"
@@ -61,6 +62,15 @@ void expect_close(const std::vector<float>& gpu, const std::vector<float>& cpu, 
                                  static_cast<unsigned long long>(seed), not_identical, cpu.size());
 }
 
+// The tile lists' mean length of the latest forward pass, and whether the compositing kernels
+// walked them per warp there (detail::walk_for: the maps of 3000 Gaussians stay below, those of
+// 40 000 go above, so both walks are checked against the CPU).
+double pairs_per_tile(const gs::Rasteriser& r, const PinholeCamera& cam) {
+  const auto t = last_forward_timings(r);
+  const double tiles = std::ceil(cam.width / 16.0) * std::ceil(cam.height / 16.0);
+  return t ? static_cast<double>(t->pairs) / tiles : 0.0;
+}
+
 TEST(CudaRasteriser, ForwardMatchesTheCpuReference) {
   if (!gpu_available()) GTEST_SKIP() << "no GPU";
   auto gpu = make_cuda_rasteriser();
@@ -68,8 +78,9 @@ TEST(CudaRasteriser, ForwardMatchesTheCpuReference) {
   const PinholeCamera cam = gs::testing::make_camera(173, 131, 150.0);  // not a whole number of tiles
   const SE3 T_cw = gs::testing::test_pose();
   const size_t pixels = static_cast<size_t>(cam.width) * cam.height;
-  for (uint64_t seed : {1u, 2u, 3u}) {
-    const gs::GaussianMap map = random_map(cam, T_cw, seed, 3000);
+  for (uint64_t seed : {1u, 2u, 3u, 4u}) {
+    const bool dense = seed == 4;  // lists long enough for the per-warp walk
+    const gs::GaussianMap map = random_map(cam, T_cw, seed, dense ? 40000 : 3000);
     for (int mode = 0; mode < 3; ++mode) {
       gs::RenderSettings settings;
       settings.normalise_depth = mode == 1;
@@ -83,6 +94,10 @@ TEST(CudaRasteriser, ForwardMatchesTheCpuReference) {
       ASSERT_EQ(a.width, cam.width);
       ASSERT_EQ(a.height, cam.height);
       SCOPED_TRACE("depth mode " + std::to_string(mode));
+      if (dense)
+        EXPECT_GE(pairs_per_tile(*gpu, cam), detail::kPerWarpFromPairsPerTile);
+      else
+        EXPECT_LT(pairs_per_tile(*gpu, cam), detail::kPerWarpFromPairsPerTile);
       expect_close(a.rgb, b.rgb, "rgb", seed);
       expect_close(a.depth, b.depth, "depth", seed);
       expect_close(a.alpha, b.alpha, "alpha", seed);
@@ -166,8 +181,9 @@ TEST(CudaRasteriser, BackwardMatchesTheCpuReference) {
   const PinholeCamera cam = gs::testing::make_camera(173, 131, 150.0);
   const SE3 T_cw = gs::testing::test_pose();
   const size_t pixels = static_cast<size_t>(cam.width) * cam.height;
-  for (uint64_t seed : {11u, 12u, 13u}) {
-    const gs::GaussianMap map = random_map(cam, T_cw, seed, 2000);
+  for (uint64_t seed : {11u, 12u, 13u, 14u}) {
+    const bool dense = seed == 14;  // lists long enough for the per-warp walk
+    const gs::GaussianMap map = random_map(cam, T_cw, seed, dense ? 40000 : 2000);
     std::mt19937_64 rng(seed);
     gs::OutputGradients go;  // random dL/d(outputs), as a loss would give
     go.rgb.resize(3 * pixels), go.depth.resize(pixels), go.alpha.resize(pixels), go.ins.resize(pixels);
@@ -184,6 +200,7 @@ TEST(CudaRasteriser, BackwardMatchesTheCpuReference) {
       std::unique_ptr<gs::RenderState> sa, sb;
       gpu->forward(map, cam, T_cw, settings, &a, &sa);
       cpu->forward(map, cam, T_cw, settings, &b, &sb);
+      EXPECT_EQ(pairs_per_tile(*gpu, cam) >= detail::kPerWarpFromPairsPerTile, dense);
       gs::MapGradients ga, gb;
       gpu->backward(map, cam, T_cw, settings, *sa, go, &ga);
       cpu->backward(map, cam, T_cw, settings, *sb, go, &gb);
