@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <random>
 #include <stdexcept>
 #include <string>
 
@@ -206,6 +207,42 @@ TEST(Trainer, PrunesStaleUnstableGaussians) {
   const KeyframeReport r = trainer.add_keyframe(keyframe_of(2));
   EXPECT_EQ(r.pruned_stale, born0);
   for (const uint32_t b : trainer.map().birth_keyframes()) EXPECT_GE(b, 1u);
+}
+
+// The pruning lists its removals per chunk of 65 536 Gaussians and plans the removal from the
+// joined list: over a map of several chunks, exactly the stale Gaussians go (tagged by object ID,
+// one in three, spread over every chunk), every other one stays.
+TEST(Trainer, PruningRemovesExactlyTheStaleAcrossChunks) {
+  GaussianTrainer::Params params;
+  params.iterations = 0;
+  params.stable_confidence = 1e9f;
+  params.max_unstable_age = 2;
+  params.max_invisible_keyframes = 0;
+  GaussianTrainer trainer(params, make_cpu_rasteriser(2));
+  for (int k = 0; k < 3; ++k) trainer.add_keyframe(keyframe_of(k % 2));  // keyframes 0, 1, 2
+  GaussianMap map = trainer.map();
+  const Frame& f = tiny_frame(0);
+  std::mt19937 rng(5);
+  size_t stale = 0, young = 0;
+  for (int i = 0; i < 200000; ++i) {
+    GaussianInit g;
+    // Behind the camera: they change no render, and no view reviews them.
+    const Eigen::Vector3d p_c(std::uniform_real_distribution<double>(-1, 1)(rng),
+                              std::uniform_real_distribution<double>(-1, 1)(rng), -1.0);
+    g.position = (f.T_wc * p_c).cast<float>();
+    g.log_scale = Eigen::Vector3f::Constant(std::log(0.01f));
+    const bool old = i % 3 == 0;
+    g.object_id = old ? 77 : 78;
+    g.birth_keyframe = old ? 0 : 2;
+    (old ? stale : young) += 1;
+    map.add(g);
+  }
+  trainer.set_map(map);
+  const size_t pruned_stale = trainer.add_keyframe(keyframe_of(1)).pruned_stale;
+  // At keyframe 3 those born at 0 are three keyframes old (> 2): gone; those born at 2 stay.
+  EXPECT_TRUE(trainer.map().indices_of(77).empty());
+  EXPECT_EQ(trainer.map().indices_of(78).size(), young);
+  EXPECT_GE(pruned_stale, stale);
 }
 
 TEST(Trainer, PrunesOversizedAndInvisibleGaussians) {
