@@ -273,7 +273,8 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     for (const auto& [key, cv] : cache_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto& cv : spare_) total += cv->rgb.bytes() + cv->depth.bytes() + cv->labels.bytes();
     for (const auto* b : {&v_rgb_, &v_depth_, &v_ins_}) total += b->bytes();
-    total += rgb8_.bytes() + select_keep_.bytes() + select_offsets_.bytes() + select_counts_.bytes() + select_temp_bytes_;
+    total += rgb8_.bytes() + select_keep_.bytes() + select_offsets_.bytes() + select_counts_.bytes();
+    total += select_temp_bytes_;
     for (const auto& b : select_index_) total += b->bytes();
     return total + resident_->bytes() + gradients_.bytes() + pipe_.bytes() + sums_.bytes();
   }
@@ -318,7 +319,8 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
       gk.count = tk.count = sel.count;
       pipe_.forward(gk, cam, settings, true);
       pair_sum_ += static_cast<double>(pipe_.pairs());
-      tile_sum_ += std::ceil(view.camera->width / 16.0) * std::ceil(view.camera->height / 16.0);
+      tile_sum_ += std::ceil(view.camera->width / double(detail::kTileSize)) *
+                   std::ceil(view.camera->height / double(detail::kTileSize));
       const size_t pixels = cv.pixels;
       // The host's factors (losses.cpp): λ · (1 / weight sum), taken in double, used in float.
       detail::LossFactors f;
@@ -410,7 +412,8 @@ class CudaTrainingEngine final : public gs::TrainingEngine {
     check(cudaStreamSynchronize(stream), "batch selection");
     for (size_t k = 0; k < used.size(); ++k) {
       selected_ += selected[k], selectable_ += n;
-      if (selected[k] < kListBelow * static_cast<double>(n)) out[used[k]] = Selection{select_index_[k]->get(), selected[k]};
+      if (selected[k] < kListBelow * static_cast<double>(n))
+        out[used[k]] = Selection{select_index_[k]->get(), selected[k]};
     }
     return out;
   }
