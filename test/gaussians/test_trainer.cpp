@@ -523,19 +523,23 @@ class ShadowRasteriser final : public Rasteriser {
   std::unique_ptr<Rasteriser> cpu_;
 };
 
+// A trainer on the stand-in backend (its rasteriser and engine sharing *shadow, made here); defer:
+// whether the engine may keep the trained attributes.
+std::unique_ptr<GaussianTrainer> shadow_trainer(const GaussianTrainer::Params& p, bool defer,
+                                                std::shared_ptr<Shadow>* shadow) {
+  *shadow = std::make_shared<Shadow>();
+  (*shadow)->defer_ok = defer;
+  return std::make_unique<GaussianTrainer>(p, std::make_unique<ShadowRasteriser>(*shadow),
+                                           std::make_unique<ShadowEngine>(*shadow));
+}
+
 TEST(Trainer, DeferredAttributesGiveTheSameMapAsFetchingEachBatch) {
   GaussianTrainer::Params p;
   p.iterations = 4;
   p.max_scale = 0.2f;  // the grown Gaussians are pruned within a few keyframes
-  auto make = [&](bool defer, std::shared_ptr<Shadow>* shadow) {
-    *shadow = std::make_shared<Shadow>();
-    (*shadow)->defer_ok = defer;
-    return std::make_unique<GaussianTrainer>(p, std::make_unique<ShadowRasteriser>(*shadow),
-                                             std::make_unique<ShadowEngine>(*shadow));
-  };
   std::shared_ptr<Shadow> sd, se;
-  auto deferred = make(true, &sd);
-  auto eager = make(false, &se);
+  auto deferred = shadow_trainer(p, true, &sd);
+  auto eager = shadow_trainer(p, false, &se);
   ASSERT_TRUE(deferred->uses_engine());
   size_t pruned = 0;
   for (int k = 0; k < 6; ++k) {
@@ -569,7 +573,6 @@ TEST(Trainer, DeferredAttributesGiveTheSameMapAsFetchingEachBatch) {
   EXPECT_EQ(se->fetches, 0);
 }
 
-
 // Out of device memory with the attributes deferred: a failed batch brings them down before the
 // engine drops its copy — idle iterations (optimise()) that fail after others left their result
 // on the device, and a keyframe's batch, after which the trainer shrinks the map (its removal
@@ -578,15 +581,9 @@ TEST(Trainer, DeferredAttributesGiveTheSameMapAsFetchingEachBatch) {
 TEST(Trainer, DeferredAttributesSurviveRunningOutOfDeviceMemory) {
   GaussianTrainer::Params p;
   p.iterations = 4;
-  auto make = [&](bool defer, std::shared_ptr<Shadow>* shadow) {
-    *shadow = std::make_shared<Shadow>();
-    (*shadow)->defer_ok = defer;
-    return std::make_unique<GaussianTrainer>(p, std::make_unique<ShadowRasteriser>(*shadow),
-                                             std::make_unique<ShadowEngine>(*shadow));
-  };
   std::shared_ptr<Shadow> sd, se;
-  auto deferred = make(true, &sd);
-  auto eager = make(false, &se);
+  auto deferred = shadow_trainer(p, true, &sd);
+  auto eager = shadow_trainer(p, false, &se);
   for (int k = 0; k < 5; ++k) {
     const std::string where = "keyframe " + std::to_string(k);
     if (k == 2) {
