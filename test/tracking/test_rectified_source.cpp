@@ -103,7 +103,11 @@ class DistortedTabletop : public ::testing::Test {
   // RMS position error of the tracked frames (the world is the first camera's); every frame must
   // be tracked.
   static double track(const dqo::FrameSource& source) {
-    dqo::tracking::Tracker tracker(source.info().camera, dqo::tracking::TrackerParams{});
+    // The local BA inside track(), so the two runs compared differ by their images alone, not
+    // by when a worker thread finished (LocalBaParams::synchronous).
+    dqo::tracking::TrackerParams params;
+    params.local_ba.synchronous = true;
+    dqo::tracking::Tracker tracker(source.info().camera, params);
     double sum = 0.0;
     for (int i = 0; i < source.num_frames(); ++i) {
       const auto f = source.read_frame(i);

@@ -251,6 +251,17 @@ class TabletopStart : public ::testing::Test {
     scene_.reset();
   }
 
+  // These tests compare runs with each other through tight ratios, so the local BA runs inside
+  // track() (LocalBaParams::synchronous): its corrections enter at once, as the live worker's do
+  // on an idle machine, but never later. With the worker they land whenever its thread finishes:
+  // CI failed the asynchronous-depth test once, and corrections entering three frames late move
+  // its told run from 0.25 to 0.34 cm (0.45 not told).
+  static TrackerParams tabletop_params() {
+    TrackerParams params;
+    params.local_ba.synchronous = true;
+    return params;
+  }
+
   // RMS position error over the frames; every frame must be tracked.
   static double track_all(const TrackerParams& params) {
     Tracker tracker(scene_->camera, params);
@@ -275,25 +286,25 @@ class TabletopStart : public ::testing::Test {
 };
 
 TEST_F(TabletopStart, FeaturesAloneTrack) {
-  TrackerParams params;
+  TrackerParams params = tabletop_params();
   params.use_dense = false;
   EXPECT_LT(track_all(params), 0.01);
 }
 
 TEST_F(TabletopStart, DenseAloneTracks) {
-  TrackerParams params;
+  TrackerParams params = tabletop_params();
   params.use_features = false;
   EXPECT_LT(track_all(params), 0.01);
 }
 
-TEST_F(TabletopStart, FusedTracks) { EXPECT_LT(track_all(TrackerParams{}), 0.005); }
+TEST_F(TabletopStart, FusedTracks) { EXPECT_LT(track_all(tabletop_params()), 0.005); }
 
 // Depth captured a frame (33 ms) before the colour, as a Kinect v1's (TUM fr1: 15 ms by the
 // stamps, more by the data): told so through depth_timestamp, the tracker keeps the pose at the
 // colour image's instant; not told, the dense alignment pulls it towards the depth's.
 TEST_F(TabletopStart, DepthCapturedBeforeTheColourKeepsTheColoursInstant) {
   auto run = [](bool tell) -> double {
-    Tracker tracker(scene_->camera, TrackerParams{});
+    Tracker tracker(scene_->camera, tabletop_params());
     double sum = 0.0;
     for (int i = 0; i < kFrames; ++i) {
       const dqo::Frame& f = (*frames_)[i];
@@ -315,14 +326,14 @@ TEST_F(TabletopStart, DepthCapturedBeforeTheColourKeepsTheColoursInstant) {
   const double not_told = run(false);
   std::printf("asynchronous depth: RMS %.4f m told, %.4f m not told\n", told, not_told);
   EXPECT_LT(told, 0.01);
-  EXPECT_LT(told, 0.8 * not_told);  // measured 0.28 against 0.45 cm
+  EXPECT_LT(told, 0.8 * not_told);  // measured 0.25 against 0.46 cm
 }
 
 // A covered lens for 8 frames (a quarter second, the camera moving on), then the view again:
 // every covered frame lost and no keyframe made, relocalised within a few frames, and no frame
 // reported ok with a wrong pose.
 TEST_F(TabletopStart, RelocalisesAfterACoveredLens) {
-  Tracker tracker(scene_->camera, TrackerParams{});
+  Tracker tracker(scene_->camera, tabletop_params());
   const dqo::SE3 T_0 = (*frames_)[0].T_wc;
   dqo::Frame covered = (*frames_)[0];
   std::fill(covered.rgb.data.begin(), covered.rgb.data.end(), 0);
@@ -365,7 +376,7 @@ TEST_F(TabletopStart, RealignedAfterACoveredLensAsAccurateAsWithout) {
   std::fill(covered.depth.data.begin(), covered.depth.data.end(), 0.0f);
   // RMS position error over the frames after the cover (all must have a pose).
   auto after_cover = [&](bool realign, bool cover) -> double {
-    TrackerParams params;
+    TrackerParams params = tabletop_params();
     params.realign_dense = realign;
     Tracker tracker(scene_->camera, params);
     double sum = 0.0;
