@@ -4,13 +4,17 @@
 // pixels. Each Gaussian visits, row by row (16-bit masks as in the forward pass), the pixels of its
 // ellipse where it is at or before the pixel's last contributor, reconstructs the transmittance in
 // front of it from the saved final one (composite_step_vjp) and sums over those pixels the
-// gradients of its 2D quantities (mean, conic, opacity, colour, depth). The per-tile sums go into a
-// per-thread buffer; the buffers are then added in thread order, and each Gaussian's 2D gradients
-// go through project_gaussian_vjp() to its attributes.
+// gradients of its 2D quantities (mean, conic, opacity, colour, depth). Each (tile, Gaussian)
+// pair's sum is written beside the pair in the tile's list; each Gaussian's are then added in
+// ascending tile order (TileBins::pair_position) and its 2D gradients go through
+// project_gaussian_vjp() to its attributes.
 //
-// Deterministic: tiles are split into one contiguous run per thread (balanced by list length), so
-// each thread sums a fixed set of tiles in a fixed order. The result depends on the thread count
-// only through the rounding of those sums.
+// Independent of the thread count, bit for bit: the threads take contiguous runs of tiles
+// (balanced by list length) but no sum crosses a run, so a robot's 16 cores and a CI machine's 2
+// train the same map. Per-thread buffers of the whole map, added in thread order, did not: their
+// rounding changed with the split, and a trained map with it.
+
+#include <memory>
 
 #include "dqo_map/gaussians/math/composite.h"
 #include "raster_internal.h"
@@ -59,10 +63,13 @@ struct TileBackward {
   uint32_t order[kTilePixels];  // (n_contrib << 8 | pixel), descending
 };
 
+// Writes the gradient sum over the tile of every pair the walk reaches (from the tile's deepest
+// last contributor to its front) and returns the end of those pairs in the tile's list: the pairs
+// behind it are not written (most of a dense map's: zeroing them cost more than the walk).
 template <typename S>
-void backward_tile(const RenderSettings& settings, const CpuRenderState<S>& state,
-                   const ImageGradients<S>& grad_out, size_t tile, TileBackward<S>* tb,
-                   Grad2D<S>* sums) {
+uint32_t backward_tile(const RenderSettings& settings, const CpuRenderState<S>& state,
+                       const ImageGradients<S>& grad_out, size_t tile, TileBackward<S>* tb,
+                       Grad2D<S>* pair_sums) {
   const std::vector<Splat<S>>& splats = state.projected.splats;
   const TileBins& bins = state.bins;
   const int width = state.width, height = state.height;
@@ -108,7 +115,8 @@ void backward_tile(const RenderSettings& settings, const CpuRenderState<S>& stat
       tb->v_ins[p] = grad_out.ins ? grad_out.ins[pix] : S(0);
     }
   }
-  if (n_order == 0) return;
+  const uint32_t begin = bins.offsets[tile];
+  if (n_order == 0) return begin;
   std::sort(tb->order, tb->order + n_order, [](uint32_t a, uint32_t b) { return a > b; });
 
   // A pixel opens when the walk reaches its last contributor: at list position pos, the pixels
@@ -117,8 +125,8 @@ void backward_tile(const RenderSettings& settings, const CpuRenderState<S>& stat
   int next_open = 0;
   const Vec3<S> bg = {S(settings.background[0]), S(settings.background[1]),
                       S(settings.background[2])};
-  const uint32_t begin = bins.offsets[tile];
-  for (uint32_t pos = tb->order[0] >> 8; pos-- > 0;) {
+  const uint32_t walked = tb->order[0] >> 8;
+  for (uint32_t pos = walked; pos-- > 0;) {
     while (next_open < n_order && (tb->order[next_open] >> 8) > pos) {
       const int p = tb->order[next_open++] & 0xff;
       open[p / kTileSize] |= 1u << (p % kTileSize);
@@ -127,7 +135,6 @@ void backward_tile(const RenderSettings& settings, const CpuRenderState<S>& stat
     const Splat<S>& s = splats[id];
     const int y0 = std::max<int>(s.y0, ty0), y1 = std::min<int>(s.y1, ty1);
     Grad2D<S> acc = grad2d_zero<S>();
-    bool touched = false;
     for (int y = y0; y <= y1; ++y) {
       const int row = y - ty0;
       if (!open[row]) continue;
@@ -152,11 +159,11 @@ void backward_tile(const RenderSettings& settings, const CpuRenderState<S>& stat
         }
         evaluate_alpha_vjp(s.conic, s.mean2d, s.opacity, px, py, vis, v_alpha, &acc.conic,
                            &acc.mean2d, &acc.opacity);
-        touched = true;
       }
     }
-    if (touched) add_to(&sums[id], acc);
+    pair_sums[begin + pos] = acc;
   }
+  return begin + walked;
 }
 
 // One contiguous run of tiles per thread, balanced by the tiles' list lengths.
@@ -182,25 +189,32 @@ template <typename S>
 void composite_backward(const GaussianArrays<S>& g, const CameraView<S>& cam,
                         const RenderSettings& settings, int threads, const CpuRenderState<S>& state,
                         const ImageGradients<S>& grad_out, const AttributeGradients<S>& grad) {
-  const size_t n = g.count;
   const size_t tiles = static_cast<size_t>(state.bins.tiles_x) * state.bins.tiles_y;
   const int n_threads = std::max(1, std::min<int>(threads, static_cast<int>(tiles)));
   const std::vector<size_t> bounds = split_tiles(state.bins, n_threads);
 
-  std::vector<std::vector<Grad2D<S>>> sums(n_threads);
+  // A pair's sum is read only where its tile's walk wrote it (default-initialised: no pass zeroes
+  // them); walk_end[t] is the end of tile t's written pairs.
+  const TileBins& bins = state.bins;
+  const std::unique_ptr<Grad2D<S>[]> pair_sums(new Grad2D<S>[bins.ids.size()]);
+  std::vector<uint32_t> walk_end(tiles);
   run_on_threads(n_threads, [&](int t) {
-    sums[t].assign(n, grad2d_zero<S>());
     auto scratch = std::make_unique<TileBackward<S>>();
+    Grad2D<S>* sums = pair_sums.get();
     for (size_t tile = bounds[t]; tile < bounds[t + 1]; ++tile)
-      backward_tile(settings, state, grad_out, tile, scratch.get(), sums[t].data());
+      walk_end[tile] = backward_tile(settings, state, grad_out, tile, scratch.get(), sums);
   });
 
+  // In index order: the attributes and their gradients are read and written in memory order.
   const std::vector<uint32_t>& visible = state.projected.visible_ids;
   parallel_for_chunks(threads, visible.size(), [&](size_t begin, size_t end) {
     for (size_t v = begin; v < end; ++v) {
       const uint32_t i = visible[v];
-      Grad2D<S> total = sums[0][i];
-      for (int t = 1; t < n_threads; ++t) add_to(&total, sums[t][i]);
+      Grad2D<S> total = grad2d_zero<S>();
+      for (uint32_t j = bins.pair_first[v]; j < bins.pair_first[v + 1]; ++j) {
+        const uint32_t position = bins.pair_position[j];
+        if (position < walk_end[bins.pair_tile[j]]) add_to(&total, pair_sums[position]);
+      }
       grad.opacity[i] += total.opacity;
       grad.colour[3 * i + 0] += total.colour.x;
       grad.colour[3 * i + 1] += total.colour.y;

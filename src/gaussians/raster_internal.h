@@ -53,11 +53,17 @@ struct ProjectedSet {
 };
 
 // Per tile, the Gaussians that touch it in depth order (ties by index): ids[offsets[t],
-// offsets[t + 1]).
+// offsets[t + 1]). And per visible Gaussian, where its pairs are, in ascending tile order: for the
+// Gaussian projected.visible_ids[v], pairs j in [pair_first[v], pair_first[v + 1]) at
+// ids[pair_position[j]] of tile pair_tile[j]. The backward pass adds each Gaussian's per-tile
+// gradients in that order, so its result does not depend on how the tiles were split over threads.
 struct TileBins {
   int tiles_x = 0, tiles_y = 0;
   std::vector<uint32_t> offsets;
   std::vector<uint32_t> ids;
+  std::vector<uint32_t> pair_first;     // [visible Gaussians + 1]
+  std::vector<uint32_t> pair_position;  // [ids.size()]
+  std::vector<uint32_t> pair_tile;      // [ids.size()]
 };
 
 template <typename S>

@@ -86,6 +86,33 @@ TEST(Trainer, TinyKeyframesReachQualityAndIds) {
   for (uint32_t id = 1; id <= 5; ++id) EXPECT_GT(trainer.map().indices_of(id).size(), 20u) << id;
 }
 
+// The map a trainer makes does not depend on its rasteriser's thread count, bit for bit: the
+// same keyframes on one thread and on three (which split the tiles differently) give the same
+// Gaussians, losses and IDs, so a map trained on a robot's cores is the one a test reproduces.
+TEST(Trainer, SameMapOnAnyThreadCount) {
+  GaussianTrainer::Params params;
+  params.iterations = 15;
+  GaussianTrainer one(params, make_cpu_rasteriser(1));
+  GaussianTrainer three(params, make_cpu_rasteriser(3));
+  for (const int f : {0, 2, 4}) {
+    const KeyframeReport a = one.add_keyframe(keyframe_of(f));
+    const KeyframeReport b = three.add_keyframe(keyframe_of(f));
+    ASSERT_EQ(a.losses.size(), b.losses.size());
+    EXPECT_EQ(a.losses, b.losses) << "keyframe " << f;
+    EXPECT_EQ(a.num_gaussians, b.num_gaussians) << "keyframe " << f;
+  }
+  const GaussianMap& a = one.map();
+  const GaussianMap& b = three.map();
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_GT(a.size(), 1000u);
+  EXPECT_EQ(a.positions(), b.positions());
+  EXPECT_EQ(a.log_scales(), b.log_scales());
+  EXPECT_EQ(a.rotations(), b.rotations());
+  EXPECT_EQ(a.colours(), b.colours());
+  EXPECT_EQ(a.opacities(), b.opacities());
+  EXPECT_EQ(a.object_ids_per_gaussian(), b.object_ids_per_gaussian());
+}
+
 // Depth-edge pixels of a depth image: some 8-neighbour differs by more than max(5 cm, 3 %).
 std::vector<uint8_t> depth_edges(const DepthImage& depth) {
   std::vector<uint8_t> edge(depth.data.size(), 0);
