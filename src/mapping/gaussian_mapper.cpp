@@ -66,6 +66,14 @@ TrainerBackend make_backend(const GaussianMapperParams& p) {
   return b;
 }
 
+// The hash of what shapes a map: not the thread count, which changes no result (the CPU
+// rasteriser's is the same bit for bit on any), so a map saved on one machine resumes on another
+// without a warning.
+uint64_t hash_of_shaping(GaussianMapperParams params) {
+  params.threads = 0;
+  return params_hash(mapping_params_to_yaml(params));
+}
+
 }  // namespace
 
 bool parse_backend(const std::string& text, Backend* backend) {
@@ -94,7 +102,7 @@ const char* to_string(Backend backend) {
 }
 
 GaussianMapper::GaussianMapper(const GaussianMapperParams& params)
-    : params_(params), params_hash_(mapping::params_hash(mapping_params_to_yaml(params))) {
+    : params_(params), params_hash_(hash_of_shaping(params)) {
   gs::GaussianTrainer::Params trainer = params_.trainer;
   trainer.max_gaussians = params_.max_gaussians;
   TrainerBackend backend = make_backend(params_);

@@ -353,6 +353,11 @@ TEST(GaussianMapper, SnapshotRestoresTheMap) {
   ASSERT_TRUE(same.add_keyframe(keyframe(2, 1, 0.1)));
   ASSERT_TRUE(same.process_next());
 
+  // The thread count shapes nothing (the same map on any): no warning for it.
+  GaussianMapperParams more_threads = fast_params();
+  more_threads.threads += 3;
+  EXPECT_EQ(GaussianMapper(more_threads).params_hash(), mapper.params_hash());
+
   GaussianMapperParams other = fast_params();
   other.trainer.iterations = 5;
   GaussianMapper different(other);
