@@ -137,9 +137,13 @@ class MappingNodeTest : public ::testing::Test {
     spinner_->start();
     ASSERT_TRUE(wait_for(
         [&] {
+          // camera_info too (the tracking node and the association node, which undistorts raw
+          // boxes): without it the first frame was once lost on CI, and the run then began a
+          // frame later than the offline run it is compared with.
           return pub_.rgb.getNumSubscribers() > 0 && pub_.depth.getNumSubscribers() > 0 &&
-                 pub_.det.getNumSubscribers() > 0 && pub_.tf.getNumSubscribers() > 0 &&
-                 kfo_sub_.getNumPublishers() > 0 && diag_.count(kMapping) > 0;
+                 pub_.info.getNumSubscribers() >= 2 && pub_.det.getNumSubscribers() > 0 &&
+                 pub_.tf.getNumSubscribers() > 0 && kfo_sub_.getNumPublishers() > 0 &&
+                 diag_.count(kMapping) > 0;
         },
         90.0))
         << "tracking, association and the mapping nodelet did not connect";
