@@ -67,7 +67,7 @@ std::vector<float> synthetic_output(const OutputLayout& l, int objects, int per_
 void bench_decode(const char* name, const std::vector<std::vector<int>>& shapes) {
   OutputLayout l;
   std::string error;
-  if (!identify_layout(shapes, YoloLayout::kAuto, 80, &l, &error)) {
+  if (!identify_layout(shapes, YoloLayout::kAuto, 80, 640, 640, &l, &error)) {
     std::fprintf(stderr, "bench_detector: %s\n", error.c_str());
     std::exit(1);
   }
@@ -94,7 +94,7 @@ void bench_decode(const char* name, const std::vector<std::vector<int>>& shapes)
 void bench_masks() {
   OutputLayout l;
   std::string error;
-  if (!identify_layout({{1, 116, 8400}, {1, 32, 160, 160}}, YoloLayout::kAuto, 80, &l, &error)) std::exit(1);
+  if (!identify_layout({{1, 116, 8400}, {1, 32, 160, 160}}, YoloLayout::kAuto, 80, 640, 640, &l, &error)) std::exit(1);
   const std::vector<float> out = synthetic_output(l, 30, 12, 2);
   std::mt19937 rng(5);
   std::normal_distribution<float> n(0.f, 1.f);
