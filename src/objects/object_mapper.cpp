@@ -5,6 +5,8 @@
 #include <cmath>
 #include <set>
 
+#include <Eigen/Geometry>
+
 #include "association.h"
 #include "box_fit.h"
 #include "depth_init.h"
@@ -13,6 +15,7 @@
 #include "dqo_map/geometry/conic.h"
 #include "dqo_map/objects/object_refinement.h"
 #include "object_merge.h"
+#include "object_surface.h"
 #include "state_file.h"
 #include "visibility.h"
 
@@ -34,7 +37,32 @@ struct KeyframeRecord {
   // The single-view depth ellipsoid of each kept detection that has one (depth images are not
   // kept): the depth evidence that box-plane quadrics of the observations are checked against.
   std::vector<std::pair<Box2d, DualQuadric>> depth_quadrics;
+  // Depth samples inside each kept detection's box, camera frame (SurfaceParams): the objects'
+  // own surface, moved with the keyframe when bundle adjustment corrects its pose.
+  std::vector<std::pair<Box2d, std::vector<Eigen::Vector3f>>> box_points;
 };
+
+bool same_box(const Box2d& a, const Box2d& b) {
+  return a.x_min == b.x_min && a.y_min == b.y_min && a.x_max == b.x_max && a.y_max == b.y_max;
+}
+
+// The box turned upright about its axis nearest the vertical (the ellipsoid's box may be tilted):
+// the same extents, the yaw of its most horizontal other axis.
+OrientedBox upright_box(const OrientedBox& b) {
+  const Eigen::Matrix3d& R = b.rotation;
+  int up = 0;
+  for (int j = 1; j < 3; ++j) {
+    if (std::abs(R(2, j)) > std::abs(R(2, up))) up = j;
+  }
+  const int a = (up + 1) % 3, c = (up + 2) % 3;
+  const int hx = R.col(a).head<2>().norm() >= R.col(c).head<2>().norm() ? a : c;
+  const int hy = hx == a ? c : a;
+  OrientedBox out;
+  out.centre = b.centre;
+  out.rotation = Eigen::AngleAxisd(std::atan2(R(1, hx), R(0, hx)), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  out.half_extents = Eigen::Vector3d(b.half_extents(hx), b.half_extents(hy), b.half_extents(up));
+  return out;
+}
 
 bool finite_pose(const SE3& T) {
   return T.translation().allFinite() && T.quaternion().coeffs().allFinite();
@@ -72,6 +100,26 @@ struct ObjectMapper::Impl {
     e.T_cw = it->second.T_wc.inverse();
     e.depth = depth_of(o);
     return e;
+  }
+
+  // The world points of an object's newest observations (at most max_views) and the camera
+  // centres that saw them.
+  void surface_of(const MapObject& object, int max_views, std::vector<Eigen::Vector3d>* points,
+                  std::vector<Eigen::Vector3d>* cameras) const {
+    int used = 0;
+    for (auto o = object.observations.rbegin(); o != object.observations.rend() && used < max_views; ++o) {
+      const auto it = keyframes.find(o->keyframe_id);
+      if (it == keyframes.end()) continue;
+      for (const auto& [box, pts] : it->second.box_points) {
+        if (!same_box(box, o->box)) continue;
+        const Eigen::Matrix3d R = it->second.T_wc.rotation();
+        const Eigen::Vector3d t = it->second.T_wc.translation();
+        for (const Eigen::Vector3f& p : pts) points->push_back(R * p.cast<double>() + t);
+        cameras->push_back(t);
+        ++used;
+        break;
+      }
+    }
   }
 
   std::optional<BoxObservation> view_of(const ObjectObservation& o) const {
@@ -249,6 +297,11 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
       record.depth_quadrics.emplace_back(dets[d].box, r.quadric);
     }
   }
+  if (kf.depth.data != nullptr && params.surface.enabled) {
+    for (const Detection2d& d : dets) {
+      record.box_points.emplace_back(d.box, sample_box_points(d.box, kf.camera, kf.depth, params.surface));
+    }
+  }
 
   keyframes[kf.id] = record;
 
@@ -406,6 +459,21 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
 
 void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAssociation* out) {
   const auto t0 = Clock::now();
+  // The object's own surface (object_surface.h): in a levelled map, the support it rests on gives
+  // the refinement its priors and the box its bottom.
+  struct Surface {
+    std::vector<Eigen::Vector3d> points, cameras;
+    SupportEstimate support;
+  };
+  std::map<ObjectId, Surface> surfaces;
+  const bool levelled = params.box_fit.upright;
+  for (const ObjectId id : seen) {
+    const auto it = objects.find(id);
+    if (!params.surface.enabled || it == objects.end() || !it->second.has_quadric) continue;
+    Surface& s = surfaces[id];
+    surface_of(it->second, params.surface.max_views, &s.points, &s.cameras);
+    if (levelled) s.support = find_support(s.points, it->second.quadric, params.surface);
+  }
   for (const ObjectId id : seen) {
     if (!params.refine) break;
     const auto it = objects.find(id);
@@ -413,7 +481,17 @@ void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAss
     MapObject& o = it->second;
     const std::vector<BoxObservation> views = views_of(o, params.refinement.max_views);
     if (static_cast<int>(views.size()) < std::max(1, params.refinement.min_views)) continue;
-    const RefinementResult r = refine_quadric(o.quadric, views, params.refinement);
+    RefinementPriors priors;
+    const auto s = surfaces.find(id);
+    if (levelled && s != surfaces.end() && s->second.support.found) {
+      priors.upright = true;
+      priors.upright_weight = params.surface.upright_weight;
+      priors.on_support = true;
+      priors.support_z = s->second.support.z;
+      priors.support_weight = params.surface.support_weight;
+      priors.support_scale = params.surface.support_scale;
+    }
+    const RefinementResult r = refine_quadric(o.quadric, views, params.refinement, priors);
     KeyFrameAssociation::Refinement entry;
     entry.id = id;
     entry.ok = r.ok && r.quadric.is_valid();
@@ -436,6 +514,17 @@ void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAss
     // Only where the box explains the detections better than the ellipsoid (box_fit.h).
     o.has_box = b.ok && b.better_than_ellipsoid;
     if (o.has_box) o.box = b.box;
+    // The surface box: the points where keyframes looked, the detections' box where none did.
+    const auto s = surfaces.find(id);
+    if (!levelled || s == surfaces.end()) continue;
+    const OrientedBox detections_box = o.has_box ? o.box : box_from_quadric(o.quadric);
+    const std::vector<Eigen::Vector3d> own = object_points(s->second.points, o.quadric, s->second.support, params.surface);
+    const SurfaceBoxResult sb = fit_surface_box(own, upright_box(detections_box), s->second.cameras, s->second.support,
+                                                params.surface);
+    if (sb.ok) {
+      o.box = sb.box;
+      o.has_box = true;
+    }
   }
   out->box_fit_ms = ms_since(t1);
 }

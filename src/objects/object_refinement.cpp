@@ -9,7 +9,9 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <ceres/autodiff_cost_function.h>
 #include <ceres/loss_function.h>
+#include <ceres/rotation.h>
 #include <ceres/manifold.h>
 #include <ceres/problem.h>
 #include <ceres/solver.h>
@@ -112,8 +114,45 @@ double total_residual(const std::vector<PreparedView>& views, const BlockState& 
   return sum;
 }
 
+// Upright prior: the rotation's column `axis` (an ellipsoid axis in the world) has no horizontal
+// part. R = rotation of q (row-major from Ceres), column j = (R[j], R[3 + j], R[6 + j]).
+struct UprightPrior {
+  int axis;
+  double weight;
+  template <typename T>
+  bool operator()(const T* q_wxyz, T* residual) const {
+    T R[9];
+    ceres::QuaternionToRotation(q_wxyz, R);
+    residual[0] = T(weight) * R[axis];
+    residual[1] = T(weight) * R[3 + axis];
+    return true;
+  }
+  static ceres::CostFunction* Create(int axis, double weight) {
+    return new ceres::AutoDiffCostFunction<UprightPrior, 2, 4>(new UprightPrior{axis, weight});
+  }
+};
+
+// Support prior: the ellipsoid's lowest point, centre_z − sqrt(Σ_j a_j² R(2, j)²), on support_z.
+struct SupportPrior {
+  double support_z, weight, scale;
+  template <typename T>
+  bool operator()(const T* centre, const T* q_wxyz, const T* log_axes, T* residual) const {
+    T R[9];
+    ceres::QuaternionToRotation(q_wxyz, R);
+    using std::exp;
+    using std::sqrt;
+    T half = T(0.0);
+    for (int j = 0; j < 3; ++j) half += exp(T(2.0) * log_axes[j]) * R[6 + j] * R[6 + j];
+    residual[0] = T(weight / scale) * (centre[2] - sqrt(half) - T(support_z));
+    return true;
+  }
+  static ceres::CostFunction* Create(double support_z, double weight, double scale) {
+    return new ceres::AutoDiffCostFunction<SupportPrior, 1, 3, 4, 3>(new SupportPrior{support_z, weight, scale});
+  }
+};
+
 void refine_impl(const DualQuadric& initial, const std::vector<BoxObservation>& views,
-                 const RefinementParams& params, RefinementResult& result) {
+                 const RefinementParams& params, const RefinementPriors& priors, RefinementResult& result) {
   if (!initial.is_valid()) {
     result.error = "initial quadric is not a valid ellipsoid";
     return;
@@ -160,6 +199,18 @@ void refine_impl(const DualQuadric& initial, const std::vector<BoxObservation>& 
     problem.AddResidualBlock(ConicBoxGiouCost::Create(v.P, v.depth_sign, v.detection, v.inner),
                              new ceres::HuberLoss(params.huber_delta), state.centre, state.q_wxyz,
                              state.log_axes);
+  }
+  if (priors.upright && priors.upright_weight > 0.0) {
+    const Eigen::Matrix3d& R = initial.rotation();
+    int up = 0;
+    for (int j = 1; j < 3; ++j) {
+      if (std::abs(R(2, j)) > std::abs(R(2, up))) up = j;
+    }
+    problem.AddResidualBlock(UprightPrior::Create(up, priors.upright_weight), nullptr, state.q_wxyz);
+  }
+  if (priors.on_support && priors.support_weight > 0.0 && priors.support_scale > 0.0) {
+    problem.AddResidualBlock(SupportPrior::Create(priors.support_z, priors.support_weight, priors.support_scale),
+                             new ceres::HuberLoss(1.0), state.centre, state.q_wxyz, state.log_axes);
   }
   // The quaternion moves on the sphere (SO(3)); the functor normalises it anyway, so the manifold
   // only removes the scale direction, which would otherwise leave the normal equations singular.
@@ -208,12 +259,12 @@ double generalised_iou(const Box2d& a, const Box2d& b) {
 }
 
 RefinementResult refine_quadric(const DualQuadric& initial, const std::vector<BoxObservation>& views,
-                                const RefinementParams& params) {
+                                const RefinementParams& params, const RefinementPriors& priors) {
   const auto start = std::chrono::steady_clock::now();
   RefinementResult result;
   result.quadric = initial;
   try {
-    refine_impl(initial, views, params, result);
+    refine_impl(initial, views, params, priors, result);
   } catch (const std::exception& e) {
     result.ok = false;
     result.error = std::string("refinement failed: ") + e.what();

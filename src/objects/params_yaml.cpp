@@ -49,6 +49,7 @@ Section schema(ObjectMapperParams& p) {
   LifecycleParams& l = p.lifecycle;
   ExistenceParams& e = l.existence;
   LabelParams& lb = p.labels;
+  SurfaceParams& sf = p.surface;
   RefinementParams& r = p.refinement;
   BoxFitParams& b = p.box_fit;
   return Section{
@@ -98,6 +99,25 @@ Section schema(ObjectMapperParams& p) {
                           {"min_overlap", &m.min_overlap, 0.0, 1.0},
                           {"max_distance", &m.max_distance, 0.0, kInf},
                           {"min_class_share", &m.min_class_share, 0.0, 1.01},
+                      },
+                      {}},
+              Section{"surface",
+                      {
+                          {"enabled", &sf.enabled},
+                          {"samples_per_box", &sf.samples_per_box, 0, 1000000},
+                          {"min_depth", &sf.min_depth, 0.0, kInf},
+                          {"max_depth", &sf.max_depth, 0.0, kInf},
+                          {"max_views", &sf.max_views, 1, 100000},
+                          {"ellipsoid_margin", &sf.ellipsoid_margin, 1.0, 10.0},
+                          {"min_points", &sf.min_points, 1, 100000000},
+                          {"trim_quantile", &sf.trim_quantile, 0.0, 0.49},
+                          {"support_reach", &sf.support_reach, 0.0, kInf},
+                          {"support_band", &sf.support_band, 0.0, kInf},
+                          {"support_max_gap", &sf.support_max_gap, 0.0, kInf},
+                          {"min_support_points", &sf.min_support_points, 1, 100000000},
+                          {"upright_weight", &sf.upright_weight, 0.0, kInf},
+                          {"support_weight", &sf.support_weight, 0.0, kInf},
+                          {"support_scale", &sf.support_scale, 1e-6, kInf},
                       },
                       {}},
               Section{"labels",

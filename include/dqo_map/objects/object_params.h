@@ -71,6 +71,30 @@ struct MergeParams {
   double min_class_share = 0.2;
 };
 
+// The object's own surface from depth (src/objects/object_surface.h): its box from its points and
+// the detections, and the support it stands on. Needs a levelled map (box_fit.upright: z up).
+struct SurfaceParams {
+  bool enabled = true;
+  int samples_per_box = 400;          // depth samples kept per detection (a grid over the box)
+  double min_depth = 0.1;             // m; samples outside are ignored
+  double max_depth = 8.0;
+  int max_views = 30;                 // the newest observations' points are used
+  double ellipsoid_margin = 1.25;     // points inside the ellipsoid scaled by this are the object's
+  int min_points = 60;                // fewer: no surface box (the detections' box stays)
+  double trim_quantile = 0.02;        // each side's extent from this quantile of the points
+  double support_reach = 0.1;         // m beyond the ellipsoid's footprint where the support is sought
+  double support_band = 0.015;        // m; points this close above the support are the support
+  double support_max_gap = 0.08;      // m; the object's lowest points within this of it: it rests on it
+  int min_support_points = 20;        // around the object (outside its ellipsoid grown by half), in a 2 cm band
+  // Refinement's priors where the object rests on a support in a levelled map: one ellipsoid axis
+  // vertical (residual: that axis's horizontal part) and the ellipsoid's bottom on the support
+  // (residual in units of support_scale). Weighed against each view's 1 − GIoU: the views can
+  // overcome them (a tilted lid keeps its box upright; the shape is free).
+  double upright_weight = 1.0;
+  double support_weight = 0.5;
+  double support_scale = 0.02;        // m
+};
+
 // The object's class from its vote (object_types.h: labels as a histogram).
 struct LabelParams {
   // The class changes only when another class has more than this times the current one's votes
@@ -159,6 +183,7 @@ struct ObjectMapperParams {
   LifecycleParams lifecycle;
   RefinementParams refinement;
   BoxFitParams box_fit;
+  SurfaceParams surface;
   LabelParams labels;
   bool refine = true;                  // IoU refinement of the objects seen in each keyframe
 };

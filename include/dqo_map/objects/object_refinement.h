@@ -34,6 +34,17 @@ struct RefinementParams {
   double huber_delta = 0.5;
 };
 
+// Priors of a levelled map (z up) for an object resting on a horizontal support (not in METHOD.md;
+// SurfaceParams says why and holds the weights). Off by default.
+struct RefinementPriors {
+  bool upright = false;        // the ellipsoid axis nearest the vertical is pulled to the vertical
+  double upright_weight = 1.0; // residual: weight × that axis's horizontal part (sin of its tilt)
+  bool on_support = false;     // the ellipsoid's lowest point is pulled onto support_z
+  double support_z = 0.0;
+  double support_weight = 0.5; // residual: weight × (lowest point − support_z) / support_scale
+  double support_scale = 0.02;
+};
+
 struct RefinementResult {
   bool ok = false;
   std::string error;              // empty when ok
@@ -55,7 +66,8 @@ struct RefinementResult {
 // a message in `error` and the input quadric. Never throws.
 RefinementResult refine_quadric(const DualQuadric& initial,
                                 const std::vector<BoxObservation>& views,
-                                const RefinementParams& params = RefinementParams());
+                                const RefinementParams& params = RefinementParams(),
+                                const RefinementPriors& priors = RefinementPriors());
 
 // The generalised IoU of two boxes, in [−1, 1] (1 for identical non-empty boxes): IoU − (C − U)/C
 // with U the union and C the area of the smallest box enclosing both; empty boxes have area 0.

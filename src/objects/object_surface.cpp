@@ -1,0 +1,199 @@
+#include "object_surface.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+
+#include <Eigen/Geometry>
+
+namespace dqo::objects {
+namespace {
+
+// The q-quantile of v (v reordered).
+double quantile(std::vector<double>& v, double q) {
+  if (v.empty()) return 0.0;
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(std::floor(q * static_cast<double>(v.size() - 1) + 0.5)));
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
+  return v[k];
+}
+
+// Half extents of the ellipsoid's axis-aligned bounding box.
+Eigen::Vector3d aligned_half_extents(const DualQuadric& q) {
+  const Eigen::Matrix3d& R = q.rotation();
+  const Eigen::Vector3d a2 = q.semi_axes().array().square();
+  Eigen::Vector3d e;
+  for (int i = 0; i < 3; ++i) e(i) = std::sqrt(R.row(i).array().square().matrix().dot(a2));
+  return e;
+}
+
+// Inside the ellipsoid scaled by `scale`.
+bool inside(const DualQuadric& q, const Eigen::Vector3d& p, double scale) {
+  const Eigen::Vector3d x = q.rotation().transpose() * (p - q.centre());
+  return (x.array() / (scale * q.semi_axes().array())).square().sum() <= 1.0;
+}
+
+struct Extent {
+  double lo = 0.0, hi = 0.0;
+};
+
+// Trimmed extents of the points along the box frame's x and y (rotated by yaw about z, relative
+// to `origin`) and z.
+std::array<Extent, 3> trimmed_extents(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& origin,
+                                      double yaw, double trim) {
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  std::array<std::vector<double>, 3> coords;
+  for (auto& v : coords) v.reserve(points.size());
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector3d d = p - origin;
+    coords[0].push_back(c * d.x() + s * d.y());
+    coords[1].push_back(-s * d.x() + c * d.y());
+    coords[2].push_back(d.z());
+  }
+  std::array<Extent, 3> out;
+  for (int i = 0; i < 3; ++i) {
+    out[i].lo = quantile(coords[i], trim);
+    out[i].hi = quantile(coords[i], 1.0 - trim);
+  }
+  return out;
+}
+
+double yaw_of(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
+
+}  // namespace
+
+std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCamera& camera,
+                                               const DepthView& depth, const SurfaceParams& params) {
+  std::vector<Eigen::Vector3f> out;
+  if (depth.data == nullptr || !box.valid() || params.samples_per_box <= 0) return out;
+  const double x0 = std::max(0.0, box.x_min), y0 = std::max(0.0, box.y_min);
+  const double x1 = std::min<double>(depth.width, box.x_max), y1 = std::min<double>(depth.height, box.y_max);
+  if (!(x1 > x0) || !(y1 > y0)) return out;
+  const double step = std::max(1.0, std::sqrt((x1 - x0) * (y1 - y0) / params.samples_per_box));
+  for (double v = y0 + 0.5 * step; v < y1; v += step) {
+    for (double u = x0 + 0.5 * step; u < x1; u += step) {
+      const int iu = static_cast<int>(u), iv = static_cast<int>(v);
+      if (iu < 0 || iv < 0 || iu >= depth.width || iv >= depth.height) continue;
+      const float z = depth.at(iu, iv);
+      if (!std::isfinite(z) || z < params.min_depth || z > params.max_depth) continue;
+      out.push_back(camera.back_project(iu, iv, z).cast<float>());
+    }
+  }
+  return out;
+}
+
+SupportEstimate find_support(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,
+                             const SurfaceParams& params) {
+  SupportEstimate out;
+  if (!q.is_valid()) return out;
+  const Eigen::Vector3d c = q.centre();
+  const Eigen::Vector3d e = aligned_half_extents(q);
+  // The object's lowest reach: a low quantile of the points inside its grown ellipsoid.
+  std::vector<double> own;
+  // 1 cm height bins below the centre, within the footprint grown by support_reach, of the points
+  // well outside the ellipsoid (grown by half): a plane that extends around the object. The
+  // object's own near-horizontal parts (the cap of a round object, a laptop's keyboard) lie inside.
+  std::map<long, int> bins;
+  for (const Eigen::Vector3d& p : points_w) {
+    if (inside(q, p, params.ellipsoid_margin)) own.push_back(p.z());
+    if (p.z() >= c.z() || std::abs(p.x() - c.x()) > e.x() + params.support_reach ||
+        std::abs(p.y() - c.y()) > e.y() + params.support_reach || inside(q, p, 1.5)) {
+      continue;
+    }
+    ++bins[static_cast<long>(std::floor(p.z() / 0.01))];
+  }
+  if (own.size() < 10) return out;
+  const double lowest = quantile(own, params.trim_quantile);
+  // The highest dense band at or below the object's lowest reach (within support_max_gap): what it
+  // stands on, not the floor seen past a table's edge.
+  for (auto it = bins.rbegin(); it != bins.rend(); ++it) {
+    const long bin = it->first;
+    const auto prev = bins.find(bin - 1);
+    const int band = it->second + (prev != bins.end() ? prev->second : 0);  // 2 cm: noise spreads a plane
+    const double z = 0.01 * bin;  // the band's middle
+    if (z > lowest + params.support_max_gap) continue;  // above the object's bottom: not under it
+    if (z < lowest - params.support_max_gap) break;     // too far below: the object does not rest on it
+    if (band < params.min_support_points) continue;
+    // The plane's height: the mean of the band's points.
+    double sum = 0.0;
+    int count = 0;
+    for (const Eigen::Vector3d& p : points_w) {
+      if (p.z() >= 0.01 * (bin - 1) && p.z() < 0.01 * (bin + 1) && std::abs(p.x() - c.x()) <= e.x() + params.support_reach &&
+          std::abs(p.y() - c.y()) <= e.y() + params.support_reach && !inside(q, p, 1.5)) {
+        sum += p.z();
+        ++count;
+      }
+    }
+    out.found = true;
+    out.z = count > 0 ? sum / count : z;
+    out.points = band;
+    break;
+  }
+  return out;
+}
+
+std::vector<Eigen::Vector3d> object_points(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,
+                                           const SupportEstimate& support, const SurfaceParams& params) {
+  std::vector<Eigen::Vector3d> out;
+  for (const Eigen::Vector3d& p : points_w) {
+    if (!inside(q, p, params.ellipsoid_margin)) continue;
+    if (support.found && p.z() < support.z + params.support_band) continue;
+    out.push_back(p);
+  }
+  return out;
+}
+
+SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, const OrientedBox& detections_box,
+                                 const std::vector<Eigen::Vector3d>& camera_centres_w,
+                                 const SupportEstimate& support, const SurfaceParams& params) {
+  SurfaceBoxResult out;
+  out.points = static_cast<int>(points_w.size());
+  if (out.points < params.min_points) return out;
+  const Eigen::Vector3d origin = detections_box.centre;
+  auto area = [&](double yaw) {
+    const auto e = trimmed_extents(points_w, origin, yaw, params.trim_quantile);
+    return (e[0].hi - e[0].lo) * (e[1].hi - e[1].lo);
+  };
+  // The footprint's yaw: the smallest trimmed footprint over 2° steps, where it is clearly smaller
+  // than the detections' box yaw's (round objects keep that one).
+  const double yaw_detections = yaw_of(detections_box.rotation);
+  double best_yaw = yaw_detections, best_area = area(yaw_detections);
+  const double detections_area = best_area;
+  for (int k = 0; k < 45; ++k) {
+    const double yaw = yaw_detections + k * M_PI / 90.0;
+    const double a = area(yaw);
+    if (a < best_area) best_area = a, best_yaw = yaw;
+  }
+  const double yaw = best_area < 0.9 * detections_area ? best_yaw : yaw_detections;
+  const std::array<Extent, 3> p = trimmed_extents(points_w, origin, yaw, params.trim_quantile);
+  // The detections' box in the same frame: its corners' extent.
+  OrientedBox frame;
+  frame.rotation = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  std::array<Extent, 3> b{Extent{1e300, -1e300}, Extent{1e300, -1e300}, Extent{1e300, -1e300}};
+  for (const Eigen::Vector3d& corner : box_corners(detections_box)) {
+    const Eigen::Vector3d l = frame.rotation.transpose() * (corner - origin);
+    for (int i = 0; i < 3; ++i) b[i].lo = std::min(b[i].lo, l(i)), b[i].hi = std::max(b[i].hi, l(i));
+  }
+  std::array<Extent, 3> r;
+  for (int i = 0; i < 3; ++i) {
+    bool seen_lo = false, seen_hi = false;
+    for (const Eigen::Vector3d& cam : camera_centres_w) {
+      const double l = (frame.rotation.transpose() * (cam - origin))(i);
+      seen_lo = seen_lo || l < p[i].lo;
+      seen_hi = seen_hi || l > p[i].hi;
+    }
+    r[i].lo = seen_lo ? p[i].lo : std::min(p[i].lo, b[i].lo);
+    r[i].hi = seen_hi ? p[i].hi : std::max(p[i].hi, b[i].hi);
+    out.faces_from_points += static_cast<int>(seen_lo) + static_cast<int>(seen_hi);
+  }
+  if (support.found) r[2].lo = support.z - origin.z();
+  if (!(r[2].hi > r[2].lo)) return out;
+  const Eigen::Vector3d mid((r[0].lo + r[0].hi) / 2, (r[1].lo + r[1].hi) / 2, (r[2].lo + r[2].hi) / 2);
+  out.box.rotation = frame.rotation;
+  out.box.centre = origin + frame.rotation * mid;
+  out.box.half_extents = Eigen::Vector3d((r[0].hi - r[0].lo) / 2, (r[1].hi - r[1].lo) / 2, (r[2].hi - r[2].lo) / 2);
+  out.ok = out.box.centre.allFinite() && out.box.half_extents.allFinite() && out.box.half_extents.minCoeff() > 0.0;
+  return out;
+}
+
+}  // namespace dqo::objects

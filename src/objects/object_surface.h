@@ -1,0 +1,61 @@
+#pragma once
+// Stage: an object's own surface from depth (not in METHOD.md; issue 24): points sampled inside its
+// detection boxes, the horizontal support it stands on in a levelled (z-up) map, and the box that
+// agrees with both the points and the detections.
+//
+// Why: the ellipsoid and the box fitted to detection boxes overestimate where views are few (a
+// silhouette box holds the object and whatever the views cannot separate from it), while an
+// object's depth points underestimate its unseen back. The surface box takes each face from the
+// points where some keyframe looked at that face, from the detections' box where none did, and the
+// bottom from the support the object rests on.
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "dqo_map/geometry/box2d.h"
+#include "dqo_map/geometry/dual_quadric.h"
+#include "dqo_map/geometry/oriented_box.h"
+#include "dqo_map/geometry/pinhole_camera.h"
+#include "dqo_map/geometry/quadric_init.h"
+#include "dqo_map/objects/object_params.h"
+
+namespace dqo::objects {
+
+// Valid depth samples on a grid over `box` (about params.samples_per_box), in the camera frame.
+std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCamera& camera,
+                                               const DepthView& depth, const SurfaceParams& params);
+
+struct SupportEstimate {
+  bool found = false;
+  double z = 0.0;       // height of the support's top (map frame, z up)
+  int points = 0;       // points in its height band
+};
+
+// The support under `q` among `points_w` (the boxes' points: the object and what surrounds it):
+// the densest 1 cm height band among the points within the ellipsoid's footprint (grown by
+// support_reach) and below its centre, if it holds at least min_support_share of them and is the
+// lowest dense band the object's own points reach down to (within support_max_gap).
+SupportEstimate find_support(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,
+                             const SurfaceParams& params);
+
+// The points of the object itself: inside its ellipsoid grown by ellipsoid_margin and, where a
+// support was found, above the support's band.
+std::vector<Eigen::Vector3d> object_points(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,
+                                           const SupportEstimate& support, const SurfaceParams& params);
+
+struct SurfaceBoxResult {
+  bool ok = false;
+  OrientedBox box;
+  int points = 0;
+  int faces_from_points = 0;  // of the six faces, those a keyframe looked at
+};
+
+// An upright box (yaw about z): the yaw of the smallest footprint of the points' trimmed extent
+// (the detections' box yaw where the points are too few or no yaw is clearly better); each side
+// from the points' trimmed extent where a camera looked at that face, else the farther of the
+// points' and the detections' box; the bottom on the support where the object rests on it.
+SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, const OrientedBox& detections_box,
+                                 const std::vector<Eigen::Vector3d>& camera_centres_w,
+                                 const SupportEstimate& support, const SurfaceParams& params);
+
+}  // namespace dqo::objects
