@@ -25,6 +25,17 @@ std::string name_of(const DetectionContext& ctx, int class_id) {
   return it != ctx.class_names.end() ? it->second : std::string();
 }
 
+// `box` with its edges moved by jitter (x_min, y_min, x_max, y_max), reordered, clipped.
+Box2d jittered(Box2d b, const double jitter[4], int width, int height) {
+  b.x_min += jitter[0];
+  b.y_min += jitter[1];
+  b.x_max += jitter[2];
+  b.y_max += jitter[3];
+  if (b.x_min > b.x_max) std::swap(b.x_min, b.x_max);
+  if (b.y_min > b.y_max) std::swap(b.y_min, b.y_max);
+  return b.clip(width, height);
+}
+
 // The classes a detection of class `cls` may be confused with, ascending: the others of its group,
 // or every other class of the scene.
 std::vector<int> confusable_with(int cls, const std::vector<int>& class_ids,
@@ -178,14 +189,7 @@ std::vector<Detection2d> simulate_detections(const Frame& frame, const Detection
           det.class_id = pool[std::min(n - 1, static_cast<int>(u_other * n))];
         }
       }
-      Box2d b = obj.box;
-      b.x_min += jitter[0];
-      b.y_min += jitter[1];
-      b.x_max += jitter[2];
-      b.y_max += jitter[3];
-      if (b.x_min > b.x_max) std::swap(b.x_min, b.x_max);
-      if (b.y_min > b.y_max) std::swap(b.y_min, b.y_max);
-      det.box = b.clip(ctx.width, ctx.height);
+      det.box = jittered(obj.box, jitter, ctx.width, ctx.height);
       det.score = static_cast<float>(score);
       det.class_name = name_of(ctx, det.class_id);
       if (det.box.valid()) out.push_back(det);
@@ -205,13 +209,7 @@ std::vector<Detection2d> simulate_detections(const Frame& frame, const Detection
       const int k = free_spots[std::min(n - 1, static_cast<int>(u_spot * n))];
       spot_used[k] = true;
       Detection2d c = spots[k];
-      c.box.x_min += spot_jitter[0];
-      c.box.y_min += spot_jitter[1];
-      c.box.x_max += spot_jitter[2];
-      c.box.y_max += spot_jitter[3];
-      if (c.box.x_min > c.box.x_max) std::swap(c.box.x_min, c.box.x_max);
-      if (c.box.y_min > c.box.y_max) std::swap(c.box.y_min, c.box.y_max);
-      c.box = c.box.clip(ctx.width, ctx.height);
+      c.box = jittered(c.box, spot_jitter, ctx.width, ctx.height);
       c.score = static_cast<float>(spot_score);
       c.class_name = name_of(ctx, c.class_id);
       c.gt_id = 0;
