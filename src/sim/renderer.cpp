@@ -7,6 +7,8 @@
 #include <thread>
 #include <vector>
 
+#include "dqo_map/sim/clutter.h"
+
 namespace dqo::sim {
 namespace {
 
@@ -227,6 +229,11 @@ Renderer::Renderer(const Scene& scene, int threads)
   detection_context_.height = scene.camera.height;
   detection_context_.class_names = scene.classes;
   for (const auto& obj : scene.objects) detection_context_.class_of_object[obj.id] = obj.class_id;
+  detection_context_.camera = scene.camera;
+  const DetectionNoiseParams& det = scene.noise.detection;
+  if (scene.noise.enabled && det.false_positive_rate > 0.0 && det.false_positive_recurring > 0.0) {
+    detection_context_.clutter = place_clutter_spots(scene, det.clutter_spots, scene.seed);
+  }
 }
 
 Frame Renderer::render(int frame_index, bool noise) const {

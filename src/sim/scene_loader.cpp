@@ -224,7 +224,44 @@ std::vector<TrajectoryPose> parse_trajectory(const YAML::Node& node, ParseContex
   return poses;
 }
 
-NoiseParams parse_noise(const YAML::Node& node, ParseContext& ctx) {
+// [[cup, bowl, vase], [laptop, book]]: class names of `classes`, two or more per group, each
+// class in one group at most. Returns class IDs.
+std::vector<std::vector<int>> parse_confusion_groups(const YAML::Node& node, ParseContext& ctx,
+                                                     const std::map<int, std::string>& classes) {
+  const std::string what = "'confusion_groups' of noise/detections";
+  if (!node.IsSequence()) fail_at(ctx.file, node, what + " must be a list of lists of class names");
+  std::map<std::string, int> id_of;
+  for (const auto& [id, name] : classes) id_of[name] = id;
+  std::map<int, size_t> group_of;
+  std::vector<std::vector<int>> groups;
+  for (size_t g = 0; g < node.size(); ++g) {
+    const YAML::Node group = node[g];
+    const std::string gwhat = "confusion group " + std::to_string(g + 1);
+    if (!group.IsSequence() || group.size() < 2) {
+      fail_at(ctx.file, group, gwhat + " must be a list of two or more class names");
+    }
+    std::vector<int> ids;
+    for (size_t k = 0; k < group.size(); ++k) {
+      const std::string name = as_string(group[k], ctx.file, "a class of " + gwhat);
+      const auto it = id_of.find(name);
+      if (it == id_of.end()) {
+        fail_at(ctx.file, group[k], "class '" + name + "' of " + gwhat + " is not in 'classes'");
+      }
+      const auto [prev, fresh] = group_of.emplace(it->second, g);
+      if (!fresh) {
+        fail_at(ctx.file, group[k],
+                "class '" + name + "' is in confusion group " + std::to_string(prev->second + 1) +
+                    (prev->second == g ? " twice" : " already (a class belongs to one group)"));
+      }
+      ids.push_back(it->second);
+    }
+    groups.push_back(std::move(ids));
+  }
+  return groups;
+}
+
+NoiseParams parse_noise(const YAML::Node& node, ParseContext& ctx,
+                        const std::map<int, std::string>& classes) {
   YamlMap m(node, ctx.file, "noise");
   NoiseParams n;
   n.enabled = m.boolean_or("enabled", true);
@@ -240,10 +277,30 @@ NoiseParams parse_noise(const YAML::Node& node, ParseContext& ctx) {
   if (det.IsDefined()) {
     YamlMap d(det, ctx.file, "noise/detections");
     DetectionNoiseParams& p = n.detection;
+    // The profile first: it sets the rates, the keys given beside it override them.
+    const YAML::Node profile_node = d.optional("profile");
+    if (profile_node.IsDefined()) {
+      const std::string name = as_string(profile_node, ctx.file, d.what("profile"));
+      const auto profile = detector_profile_from_name(name);
+      if (!profile) {
+        fail_at(ctx.file, profile_node,
+                "unknown detector profile '" + name + "' (" + kDetectorProfileNames + ")");
+      }
+      set_detector_profile(*profile, &p);
+    }
     p.box_jitter_px = d.number_in_or("box_jitter_px", 0.0, 1e3, p.box_jitter_px);
     p.miss_rate = d.number_in_or("miss_rate", 0.0, 1.0, p.miss_rate);
     p.false_positive_rate = d.number_in_or("false_positive_rate", 0.0, 1.0, p.false_positive_rate);
     p.confusion_rate = d.number_in_or("confusion_rate", 0.0, 1.0, p.confusion_rate);
+    p.confusion_within_groups =
+        d.boolean_or("confusion_within_groups", p.confusion_within_groups);
+    const YAML::Node groups = d.optional("confusion_groups");
+    if (groups.IsDefined()) p.confusion_groups = parse_confusion_groups(groups, ctx, classes);
+    p.false_positive_recurring =
+        d.number_in_or("false_positive_recurring", 0.0, 1.0, p.false_positive_recurring);
+    p.clutter_spots = d.integer_or("clutter_spots", p.clutter_spots);
+    if (p.clutter_spots < 0 || p.clutter_spots > 1000)
+      d.fail_key("clutter_spots", d.what("clutter_spots") + " must be in [0, 1000]");
     p.min_visible_fraction =
         d.number_in_or("min_visible_fraction", 0.0, 1.0, p.min_visible_fraction);
     p.min_box_px = d.number_in_or("min_box_px", 0.0, 1e4, p.min_box_px);
@@ -253,7 +310,8 @@ NoiseParams parse_noise(const YAML::Node& node, ParseContext& ctx) {
   return n;
 }
 
-Scene parse_root(const YAML::Node& root, ParseContext& ctx, const std::string& default_name) {
+Scene parse_root(const YAML::Node& root, ParseContext& ctx, const std::string& default_name,
+                 const SceneOverrides& overrides) {
   YamlMap m(root, ctx.file, "the scene");
   Scene scene;
   scene.source = ctx.file;
@@ -280,8 +338,12 @@ Scene parse_root(const YAML::Node& root, ParseContext& ctx, const std::string& d
   for (size_t i = 0; i < objects.size(); ++i) parse_item(objects[i], ctx, true, i, &scene);
   scene.trajectory = parse_trajectory(m.required("trajectory"), ctx, frames, fps, scene.seed);
   const YAML::Node noise = m.optional("noise");
-  if (noise.IsDefined()) scene.noise = parse_noise(noise, ctx);
+  if (noise.IsDefined()) scene.noise = parse_noise(noise, ctx, scene.classes);
   m.finish();
+  // The command line's profile replaces the file's and its rates (thresholds and groups stay).
+  if (overrides.detector_profile) {
+    set_detector_profile(*overrides.detector_profile, &scene.noise.detection);
+  }
   return scene;
 }
 
@@ -290,7 +352,7 @@ Scene parse_root(const YAML::Node& root, ParseContext& ctx, const std::string& d
 
 std::optional<Scene> parse_scene(const std::string& yaml_text, const std::string& name_for_messages,
                                  const std::string& base_dir, const MeshLoader& loader,
-                                 std::string* error) {
+                                 std::string* error, const SceneOverrides& overrides) {
   detail::ParseContext ctx;
   ctx.file = name_for_messages;
   ctx.base_dir = base_dir;
@@ -298,7 +360,8 @@ std::optional<Scene> parse_scene(const std::string& yaml_text, const std::string
   try {
     const YAML::Node root = YAML::Load(yaml_text);
     Scene scene =
-        detail::parse_root(root, ctx, std::filesystem::path(name_for_messages).stem().string());
+        detail::parse_root(root, ctx, std::filesystem::path(name_for_messages).stem().string(),
+                           overrides);
     const std::string problem = validate_scene(scene);
     if (!problem.empty()) throw detail::SceneError(name_for_messages + ": " + problem);
     return scene;
@@ -311,7 +374,7 @@ std::optional<Scene> parse_scene(const std::string& yaml_text, const std::string
 }
 
 std::optional<Scene> load_scene(const std::string& yaml_path, const MeshLoader& loader,
-                                std::string* error) {
+                                std::string* error, const SceneOverrides& overrides) {
   std::ifstream in(yaml_path);
   if (!in) {
     if (error) *error = yaml_path + ": cannot open the scene file";
@@ -320,7 +383,7 @@ std::optional<Scene> load_scene(const std::string& yaml_path, const MeshLoader& 
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string base_dir = std::filesystem::path(yaml_path).parent_path().string();
-  return parse_scene(ss.str(), yaml_path, base_dir, loader, error);
+  return parse_scene(ss.str(), yaml_path, base_dir, loader, error, overrides);
 }
 
 }  // namespace dqo::sim

@@ -2,7 +2,7 @@
 // optionally into a rosbag laid out as the Azure Kinect driver records.
 //
 //   dqo_make_scene SCENE.yaml OUT_DIR [--bag OUT.bag] [--frames N] [--every K] [--seed S]
-//                  [--no-noise] [--threads T] [--overwrite] [--gt-tf]
+//                  [--no-noise] [--threads T] [--overwrite] [--gt-tf] [--detector-profile P]
 //
 // Rendering runs on all cores (the renderer splits each frame into tiles); PNG encoding and bag
 // writing run on a second thread behind a short queue, so the two overlap.
@@ -33,12 +33,17 @@ namespace {
 constexpr char kUsage[] =
     "usage: dqo_make_scene SCENE.yaml OUT_DIR [--bag OUT.bag] [--frames N] [--every K] [--seed S]\n"
     "                      [--scale S] [--no-noise] [--threads T] [--overwrite] [--gt-tf] [--masks]\n"
+    "                      [--detector-profile kind|real]\n"
     "  --bag OUT.bag  also write a rosbag in the Azure Kinect driver's layout (ROS builds only)\n"
     "  --frames N     at most N frames (default: the whole trajectory)\n"
     "  --every K      keep every K-th frame of the trajectory (default 1)\n"
     "  --seed S       override the scene's noise seed\n"
     "  --scale S      render at S times the scene's image size (e.g. 0.5: half width and height)\n"
     "  --no-noise     no sensor or detector noise\n"
+    "  --detector-profile P  the simulated detector behaves as profile P whatever the scene file\n"
+    "                 says of its rates: kind (the default) or real (recall 40 %, 30 % of labels\n"
+    "                 flipped within the scene's confusion groups, 10 % false positives, half\n"
+    "                 of them on fixed clutter spots); see config/scenes/README.md\n"
     "  --threads T    rendering threads (default: all cores)\n"
     "  --overwrite    replace OUT_DIR if it holds a dataset already\n"
     "  --gt-tf        write the ground-truth map -> camera_base tf into the bag\n"
@@ -57,6 +62,7 @@ struct Options {
   bool overwrite = false;
   bool gt_tf = false;
   bool masks = false;
+  dqo::sim::SceneOverrides overrides;
 };
 
 bool parse_int(const char* text, long min, long* out) {
@@ -106,6 +112,15 @@ std::optional<Options> parse_args(int argc, char** argv) {
       o.scale = std::strtod(v, &end);
       if (end == v || *end != '\0' || !(o.scale > 0.0 && o.scale <= 4.0)) {
         std::fprintf(stderr, "dqo_make_scene: --scale takes a number in (0, 4], not '%s'\n", v);
+        return std::nullopt;
+      }
+    } else if (a == "--detector-profile") {
+      const char* v = value("--detector-profile");
+      if (!v) return std::nullopt;
+      o.overrides.detector_profile = dqo::sim::detector_profile_from_name(v);
+      if (!o.overrides.detector_profile) {
+        std::fprintf(stderr, "dqo_make_scene: unknown detector profile '%s' (%s)\n", v,
+                     dqo::sim::kDetectorProfileNames);
         return std::nullopt;
       }
     } else if (a == "--no-noise") {
@@ -216,7 +231,7 @@ int main(int argc, char** argv) {
   if (!opt) return 2;
 
   std::string error;
-  auto scene = dqo::sim::load_scene(opt->scene, &dqo::load_mesh, &error);
+  auto scene = dqo::sim::load_scene(opt->scene, &dqo::load_mesh, &error, opt->overrides);
   if (!scene) {
     std::fprintf(stderr, "dqo_make_scene: %s\n", error.c_str());
     return 1;
@@ -231,9 +246,17 @@ int main(int argc, char** argv) {
     if (opt->frames >= 0 && static_cast<int>(indices.size()) >= opt->frames) break;
     indices.push_back(i);
   }
-  std::fprintf(stderr, "dqo_make_scene: scene '%s': %zu objects, %dx%d, %zu of %d frames, noise %s, %d threads\n",
+  const bool noisy = opt->noise && scene->noise.enabled;
+  std::fprintf(stderr, "dqo_make_scene: scene '%s': %zu objects, %dx%d, %zu of %d frames, noise %s, "
+               "detector %s, %d threads\n",
                scene->name.c_str(), scene->objects.size(), scene->camera.width, scene->camera.height,
-               indices.size(), renderer.num_frames(), opt->noise ? "on" : "off", renderer.threads());
+               indices.size(), renderer.num_frames(), noisy ? "on" : "off",
+               noisy ? dqo::sim::detector_profile_name(scene->noise.detection.profile) : "exact",
+               renderer.threads());
+  if (opt->overrides.detector_profile && !noisy) {
+    std::fprintf(stderr, "dqo_make_scene: warning: --detector-profile has no effect: %s\n",
+                 opt->noise ? "the scene's noise is off" : "--no-noise");
+  }
 
   dqo::DatasetWriter::Params writer_params;
   writer_params.overwrite = opt->overwrite;

@@ -207,6 +207,104 @@ TEST(SceneLoader, RotationsAsRpyAndQuaternionAgree) {
   EXPECT_TRUE(contains(both, "scenes/bad.yaml:10:") && contains(both, "at most one")) << both;
 }
 
+// ------------------------------------------------------------------ the simulated detector
+
+// The test scene with three classes (lines 5-7; the rest moves down by two, trajectory on 15) and
+// `noise` appended from line 16 on.
+std::string detector_scene(const std::string& noise) {
+  return scene_text(5, "  - {id: 1, name: box}\n  - {id: 2, name: can}\n  - {id: 3, name: jar}") +
+         noise;
+}
+
+std::optional<Scene> parse_ok(const std::string& text, const SceneOverrides& overrides = {}) {
+  std::string error;
+  auto scene = parse_scene(text, "ok.yaml", "", {}, &error, overrides);
+  EXPECT_TRUE(scene.has_value()) << error;
+  return scene;
+}
+
+TEST(SceneLoader, DetectorProfileSetsTheRatesAndKeysOverrideThem) {
+  const auto kind = parse_ok(detector_scene(""));
+  ASSERT_TRUE(kind);
+  EXPECT_EQ(kind->noise.detection.profile, DetectorProfile::kKind);
+  EXPECT_DOUBLE_EQ(kind->noise.detection.miss_rate, 0.10);
+  EXPECT_DOUBLE_EQ(kind->noise.detection.false_positive_recurring, 0.0);
+  EXPECT_FALSE(kind->noise.detection.confusion_within_groups);
+
+  const auto real = parse_ok(detector_scene("noise:\n  detections: {profile: real}\n"));
+  ASSERT_TRUE(real);
+  const DetectionNoiseParams& r = real->noise.detection;
+  EXPECT_EQ(r.profile, DetectorProfile::kReal);
+  EXPECT_DOUBLE_EQ(r.miss_rate, 0.6);
+  EXPECT_DOUBLE_EQ(r.confusion_rate, 0.3);
+  EXPECT_DOUBLE_EQ(r.false_positive_rate, 0.10);
+  EXPECT_DOUBLE_EQ(r.false_positive_recurring, 0.5);
+  EXPECT_TRUE(r.confusion_within_groups);
+  EXPECT_GT(r.box_jitter_px, 3.0);
+
+  // Keys beside the profile win over it, wherever they stand.
+  const auto mixed = parse_ok(detector_scene(
+      "noise:\n  detections: {miss_rate: 0.5, profile: real, false_positive_recurring: 0,\n"
+      "               confusion_groups: [[box, jar]], clutter_spots: 3, min_box_px: 4}\n"));
+  ASSERT_TRUE(mixed);
+  const DetectionNoiseParams& m = mixed->noise.detection;
+  EXPECT_EQ(m.profile, DetectorProfile::kReal);
+  EXPECT_DOUBLE_EQ(m.miss_rate, 0.5);
+  EXPECT_DOUBLE_EQ(m.false_positive_recurring, 0.0);
+  EXPECT_DOUBLE_EQ(m.confusion_rate, 0.3);  // the profile's
+  EXPECT_EQ(m.clutter_spots, 3);
+  EXPECT_DOUBLE_EQ(m.min_box_px, 4.0);
+  ASSERT_EQ(m.confusion_groups.size(), 1u);
+  EXPECT_EQ(m.confusion_groups[0], (std::vector<int>{1, 3}));
+}
+
+TEST(SceneLoader, CommandLineProfileReplacesTheFilesRates) {
+  const std::string text = detector_scene(
+      "noise:\n  detections: {profile: kind, miss_rate: 0.2, min_box_px: 4,\n"
+      "               confusion_groups: [[can, jar]]}\n");
+  SceneOverrides real;
+  real.detector_profile = DetectorProfile::kReal;
+  const auto a = parse_ok(text, real);
+  ASSERT_TRUE(a);
+  EXPECT_EQ(a->noise.detection.profile, DetectorProfile::kReal);
+  EXPECT_DOUBLE_EQ(a->noise.detection.miss_rate, 0.6);  // not the file's 0.2
+  EXPECT_DOUBLE_EQ(a->noise.detection.min_box_px, 4.0);  // the file's threshold stays
+  EXPECT_EQ(a->noise.detection.confusion_groups.size(), 1u);  // and its groups
+  // Without a noise block too; and back to kind from a real scene.
+  EXPECT_DOUBLE_EQ(parse_ok(detector_scene(""), real)->noise.detection.miss_rate, 0.6);
+  SceneOverrides kind;
+  kind.detector_profile = DetectorProfile::kKind;
+  const auto b = parse_ok(detector_scene("noise:\n  detections: {profile: real}\n"), kind);
+  EXPECT_DOUBLE_EQ(b->noise.detection.miss_rate, 0.10);
+  EXPECT_FALSE(b->noise.detection.confusion_within_groups);
+}
+
+TEST(SceneLoader, BadDetectorProfilesAndGroupsAreRefused) {
+  std::string e = load_error(detector_scene("noise:\n  detections: {profile: realistic}\n"));
+  EXPECT_TRUE(contains(e, "scenes/bad.yaml:17:") && contains(e, "unknown detector profile") &&
+              contains(e, "'realistic'") && contains(e, "kind, real"))
+      << e;
+  e = load_error(detector_scene("noise:\n  detections:\n    confusion_groups: [[box, cat]]\n"));
+  EXPECT_TRUE(contains(e, "scenes/bad.yaml:18:") && contains(e, "class 'cat'") &&
+              contains(e, "not in 'classes'"))
+      << e;
+  e = load_error(
+      detector_scene("noise:\n  detections:\n    confusion_groups: [[box, can], [jar, box]]\n"));
+  EXPECT_TRUE(contains(e, "scenes/bad.yaml:18:") && contains(e, "'box'") &&
+              contains(e, "confusion group 1 already"))
+      << e;
+  e = load_error(detector_scene("noise:\n  detections:\n    confusion_groups: [[box]]\n"));
+  EXPECT_TRUE(contains(e, "two or more")) << e;
+  e = load_error(detector_scene("noise:\n  detections:\n    confusion_groups: [box, can]\n"));
+  EXPECT_TRUE(contains(e, "two or more")) << e;
+  e = load_error(detector_scene("noise:\n  detections: {false_positive_recurring: 1.5}\n"));
+  EXPECT_TRUE(contains(e, "false_positive_recurring")) << e;
+  e = load_error(detector_scene("noise:\n  detections: {clutter_spots: -1}\n"));
+  EXPECT_TRUE(contains(e, "clutter_spots")) << e;
+  e = load_error(detector_scene("noise:\n  detections: {profile: [real]}\n"));
+  EXPECT_TRUE(contains(e, "profile")) << e;
+}
+
 // ------------------------------------------------------------------ the shipped scenes
 
 Scene load(const std::string& name) {
@@ -251,6 +349,28 @@ TEST(ShippedScenes, TabletopAndItsPlainTwin) {
       for (const auto& m : o.part_materials) EXPECT_EQ(m.type, TextureType::kUniform);
     }
   }
+}
+
+TEST(ShippedScenes, ConfusionGroupsOfTabletopAndRoom) {
+  auto names = [](const Scene& s, const std::vector<int>& group) {
+    std::set<std::string> n;
+    for (const int c : group) n.insert(s.classes.at(c));
+    return n;
+  };
+  const Scene t = load("tabletop");
+  EXPECT_EQ(t.noise.detection.profile, DetectorProfile::kKind);  // no profile given
+  ASSERT_EQ(t.noise.detection.confusion_groups.size(), 2u);
+  EXPECT_EQ(names(t, t.noise.detection.confusion_groups[0]),
+            (std::set<std::string>{"laptop", "book"}));
+  EXPECT_EQ(names(t, t.noise.detection.confusion_groups[1]),
+            (std::set<std::string>{"cup", "bottle"}));
+  const Scene r = load("room");
+  EXPECT_EQ(r.noise.detection.profile, DetectorProfile::kKind);
+  std::set<int> grouped;
+  for (const auto& g : r.noise.detection.confusion_groups) grouped.insert(g.begin(), g.end());
+  EXPECT_GE(grouped.size(), 12u);  // most of the 16 classes have look-alikes
+  EXPECT_EQ(names(r, r.noise.detection.confusion_groups[0]),
+            (std::set<std::string>{"cup", "bowl", "vase", "bottle"}));
 }
 
 TEST(ShippedScenes, TinyAndOcclusion) {

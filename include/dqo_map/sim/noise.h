@@ -3,6 +3,9 @@
 // number is keyed by (seed, frame, pixel), so the result is the same for any thread count.
 
 #include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "dqo_map/common/dataset.h"
 
@@ -20,16 +23,43 @@ struct SensorNoiseParams {
   double rgb_sigma = 2.0;  // 8-bit units, per channel
 };
 
+// How the simulated detector behaves, as a whole: `kKind` is a gentle detector (the defaults
+// below), `kReal` one like a COCO detector on real frames (recall 40 %, labels flipped among
+// look-alike classes, clutter boxed again and again at the same places).
+enum class DetectorProfile { kKind, kReal };
+
 struct DetectionNoiseParams {
-  double box_jitter_px = 3.0;         // σ of each box edge
-  double miss_rate = 0.10;            // a detectable object is not reported
-  double false_positive_rate = 0.05;  // per reported detection, one spurious box of a random class
-  double confusion_rate = 0.02;       // a reported object gets another class
+  DetectorProfile profile = DetectorProfile::kKind;  // what the rates below came from
+  double box_jitter_px = 3.0;  // σ of each box edge
+  double miss_rate = 0.10;     // a detectable object is not reported
+  // Per detectable object (reported or missed), one spurious box with this probability: the
+  // expected number of false positives is false_positive_rate times the detectable objects.
+  double false_positive_rate = 0.05;
+  double confusion_rate = 0.02;  // a reported object gets another class
+  // Confused classes stay within the object's group of confusion_groups (a class in no group:
+  // any other class). False: any other class, groups or not (the kind detector).
+  bool confusion_within_groups = false;
+  // Look-alike classes (class IDs; each class in one group at most, two or more per group).
+  std::vector<std::vector<int>> confusion_groups;
+  // The share of false positives that fall on fixed clutter spots of the scene (surfaces of the
+  // room and furniture, placed from the seed) visible in the frame, as a real detector boxes the
+  // same cable as "scissors" frame after frame; the rest are random boxes. A frame in which no
+  // spot is visible (or all have been used) gets random boxes instead.
+  double false_positive_recurring = 0.0;
+  int clutter_spots = 6;  // how many such spots the scene has (used when recurring > 0)
   // Only objects seen well enough become detections (noise or not): their visible fraction and the
   // smaller side of their visible box.
   double min_visible_fraction = 0.2;
   double min_box_px = 10.0;
 };
+
+// Sets the rates of `profile` (jitter, misses, false positives, confusions, groups on or off,
+// recurring clutter) and params->profile; keeps the visibility thresholds and the groups.
+void set_detector_profile(DetectorProfile profile, DetectionNoiseParams* params);
+const char* detector_profile_name(DetectorProfile profile);  // "kind", "real"
+// nullopt for a name that is not a profile.
+std::optional<DetectorProfile> detector_profile_from_name(const std::string& name);
+constexpr char kDetectorProfileNames[] = "kind, real";
 
 struct NoiseParams {
   bool enabled = true;  // false: clean images and exact detections (the `tiny` scene)

@@ -41,6 +41,8 @@ class Renderer {
   DatasetInfo info() const { return dataset_info(scene_); }
 
   const Scene& scene() const { return scene_; }
+  // What the simulated detector knows of the scene (classes, clutter spots, camera).
+  const DetectionContext& detection_context() const { return detection_context_; }
   int threads() const { return threads_; }
 
  private:
