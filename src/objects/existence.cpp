@@ -71,6 +71,7 @@ double after_miss(double log_odds, MissKind kind, const std::string& class_name,
     case MissKind::kOccluded: return log_odds;
     case MissKind::kSupported: step = params.supported_miss_weight * params.log_odds_missed(class_name); break;
     case MissKind::kFreeSpace: step = params.log_odds_missed(class_name) + params.free_space; break;
+    case MissKind::kExplained: step = params.log_odds_missed(class_name); break;
   }
   return std::clamp(log_odds + step, -params.max_log_odds, params.max_log_odds);
 }

@@ -28,6 +28,8 @@ enum class MissKind {
   kOccluded,   // most valid rays stop before the object: not visible, no evidence
   kSupported,  // the depth shows a surface inside the ellipsoid (or there is no depth)
   kFreeSpace,  // the depth sees through the ellipsoid
+  kExplained,  // a detection where it should be went to another object: a plain miss, the surface
+               // it shows is that object's (a duplicate of one object decays, not lingers)
 };
 
 // `tolerance`: metres of depth noise on either side of the ellipsoid (plus 1 % of the depth).

@@ -355,7 +355,18 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     const size_t t = first_visible_track + k;
     if (assoc.track_to_detection[t] >= 0) continue;
     MapObject* o = track_objects[t];
-    if (const auto kind = miss_of(*o, visible[k], kf)) {
+    if (auto kind = miss_of(*o, visible[k], kf)) {
+      // A detection covering it (most of its projected box) that another object took explains the
+      // surface the depth shows there: a duplicate, or clutter boxes on a larger object, decays.
+      if (*kind == MissKind::kSupported) {
+        for (size_t d = 0; d < dets.size(); ++d) {
+          if (det_object[d] != 0 && det_object[d] != o->id &&
+              overlap_ratio(dets[d].box, visible[k].box) >= params.merge.min_overlap) {
+            kind = MissKind::kExplained;
+            break;
+          }
+        }
+      }
       ++o->missed;
       o->existence = after_miss(o->existence, *kind, o->class_name, params.lifecycle.existence);
       if (*kind == MissKind::kFreeSpace) ++out.free_space_misses;
@@ -495,6 +506,17 @@ void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAss
     KeyFrameAssociation::Refinement entry;
     entry.id = id;
     entry.ok = r.ok && r.quadric.is_valid();
+    // Boxes alone leave an ellipsoid free to slide along the rays (farther and larger fits the
+    // same boxes): a refinement that leaves most of the object's own depth points outside is
+    // refused (room: a duplicate slid 3.8 m through a wall).
+    if (entry.ok && s != surfaces.end()) {
+      const SupportEstimate& support = s->second.support;
+      const size_t before = object_points(s->second.points, o.quadric, support, params.surface).size();
+      if (static_cast<int>(before) >= params.surface.min_points &&
+          2 * object_points(s->second.points, r.quadric, support, params.surface).size() < before) {
+        entry.ok = false;
+      }
+    }
     entry.views = r.views_used;
     entry.ms = r.time_ms;
     out->refinements.push_back(entry);

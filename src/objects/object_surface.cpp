@@ -104,21 +104,22 @@ SupportEstimate find_support(const std::vector<Eigen::Vector3d>& points_w, const
   }
   if (own.size() < 10) return out;
   const double lowest = quantile(own, params.trim_quantile);
-  // The highest dense band at or below the object's lowest reach (within support_max_gap): what it
-  // stands on, not the floor seen past a table's edge.
-  for (auto it = bins.rbegin(); it != bins.rend(); ++it) {
+  // The lowest dense band from support_max_gap below the object's lowest reach up to its bottom:
+  // what it stands on, not its own top (a book's, seen past its corners) nor a laptop's keyboard
+  // just above the table.
+  for (auto it = bins.begin(); it != bins.end(); ++it) {
     const long bin = it->first;
-    const auto prev = bins.find(bin - 1);
-    const int band = it->second + (prev != bins.end() ? prev->second : 0);  // 2 cm: noise spreads a plane
-    const double z = 0.01 * bin;  // the band's middle
-    if (z > lowest + params.support_max_gap) continue;  // above the object's bottom: not under it
-    if (z < lowest - params.support_max_gap) break;     // too far below: the object does not rest on it
+    const auto next = bins.find(bin + 1);
+    const int band = it->second + (next != bins.end() ? next->second : 0);  // 2 cm: noise spreads a plane
+    const double z = 0.01 * (bin + 1);  // the band's middle
+    if (z < lowest - params.support_max_gap) continue;  // too far below: the object does not rest on it
+    if (z > lowest + params.support_band) break;        // above the object's bottom: not under it
     if (band < params.min_support_points) continue;
     // The plane's height: the mean of the band's points.
     double sum = 0.0;
     int count = 0;
     for (const Eigen::Vector3d& p : points_w) {
-      if (p.z() >= 0.01 * (bin - 1) && p.z() < 0.01 * (bin + 1) && std::abs(p.x() - c.x()) <= e.x() + params.support_reach &&
+      if (p.z() >= 0.01 * bin && p.z() < 0.01 * (bin + 2) && std::abs(p.x() - c.x()) <= e.x() + params.support_reach &&
           std::abs(p.y() - c.y()) <= e.y() + params.support_reach && !inside(q, p, 1.5)) {
         sum += p.z();
         ++count;
@@ -164,7 +165,13 @@ SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, c
     const double a = area(yaw);
     if (a < best_area) best_area = a, best_yaw = yaw;
   }
-  const double yaw = best_area < 0.9 * detections_area ? best_yaw : yaw_detections;
+  double yaw = best_area < 0.9 * detections_area ? best_yaw : yaw_detections;
+  // A round footprint (a bottle, a bowl) has no yaw of its own: the smallest and the largest
+  // trimmed footprint within round_footprint of each other. Its box is then aligned with the map's
+  // axes, a convention (the area is the same for every yaw) that keeps it from turning with noise.
+  double worst_area = 0.0;
+  for (int k = 0; k < 45; ++k) worst_area = std::max(worst_area, area(yaw_detections + k * M_PI / 90.0));
+  if (best_area >= params.round_footprint * worst_area) yaw = 0.0;
   const std::array<Extent, 3> p = trimmed_extents(points_w, origin, yaw, params.trim_quantile);
   // The detections' box in the same frame: its corners' extent.
   OrientedBox frame;

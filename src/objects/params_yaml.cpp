@@ -111,6 +111,7 @@ Section schema(ObjectMapperParams& p) {
                           {"ellipsoid_margin", &sf.ellipsoid_margin, 1.0, 10.0},
                           {"min_points", &sf.min_points, 1, 100000000},
                           {"trim_quantile", &sf.trim_quantile, 0.0, 0.49},
+                          {"round_footprint", &sf.round_footprint, 0.0, 1.01},
                           {"support_reach", &sf.support_reach, 0.0, kInf},
                           {"support_band", &sf.support_band, 0.0, kInf},
                           {"support_max_gap", &sf.support_max_gap, 0.0, kInf},

@@ -82,6 +82,7 @@ struct SurfaceParams {
   double ellipsoid_margin = 1.25;     // points inside the ellipsoid scaled by this are the object's
   int min_points = 60;                // fewer: no surface box (the detections' box stays)
   double trim_quantile = 0.02;        // each side's extent from this quantile of the points
+  double round_footprint = 0.93;      // smallest / largest footprint over yaw above this: round, yaw 0
   double support_reach = 0.1;         // m beyond the ellipsoid's footprint where the support is sought
   double support_band = 0.015;        // m; points this close above the support are the support
   double support_max_gap = 0.08;      // m; the object's lowest points within this of it: it rests on it
