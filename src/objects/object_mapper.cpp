@@ -64,6 +64,11 @@ OrientedBox upright_box(const OrientedBox& b) {
   return out;
 }
 
+Eigen::Vector3d sorted(Eigen::Vector3d v) {
+  std::sort(v.data(), v.data() + 3);
+  return v;
+}
+
 bool finite_pose(const SE3& T) {
   return T.translation().allFinite() && T.quaternion().coeffs().allFinite();
 }
@@ -120,6 +125,20 @@ struct ObjectMapper::Impl {
         break;
       }
     }
+  }
+
+  // Whether the depth shows the object standing out of the surface it rests on (in a levelled
+  // map): recurring clutter boxes on a table (a detector's "scissors" on a cable, a mark) have
+  // nothing above the table's band, and are not confirmed. True where there is no such evidence.
+  bool rises_from_support(const MapObject& object) const {
+    if (!params.surface.enabled || !params.box_fit.upright || !object.has_quadric) return true;
+    std::vector<Eigen::Vector3d> points, cameras;
+    surface_of(object, params.surface.max_views, &points, &cameras);
+    if (static_cast<int>(points.size()) < params.surface.min_points) return true;
+    const SupportEstimate support = find_support(points, object.quadric, params.surface);
+    if (!support.found) return true;
+    return 2 * static_cast<int>(object_points(points, object.quadric, support, params.surface).size()) >=
+           params.surface.min_points;
   }
 
   std::optional<BoxObservation> view_of(const ObjectObservation& o) const {
@@ -404,7 +423,8 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
   for (const ObjectId id : seen) {
     MapObject& o = objects.at(id);
     try_box_init(&o);
-    if (o.state == ObjectState::kCandidate && o.has_quadric && o.existence >= confirm_log_odds) {
+    if (o.state == ObjectState::kCandidate && o.has_quadric && o.existence >= confirm_log_odds &&
+        rises_from_support(o)) {
       o.state = ObjectState::kConfirmed;
     }
   }
@@ -543,7 +563,10 @@ void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAss
     const std::vector<Eigen::Vector3d> own = object_points(s->second.points, o.quadric, s->second.support, params.surface);
     const SurfaceBoxResult sb = fit_surface_box(own, upright_box(detections_box), s->second.cameras, s->second.support,
                                                 params.surface);
-    if (sb.ok) {
+    // A box much thinner than the detections' in any direction comes from an ellipsoid that cut
+    // the points to a sliver: the detections' box stays.
+    const Eigen::Vector3d sorted_box = sorted(sb.box.half_extents), sorted_det = sorted(detections_box.half_extents);
+    if (sb.ok && (sorted_box.array() >= params.surface.min_extent_ratio * sorted_det.array()).all()) {
       o.box = sb.box;
       o.has_box = true;
     }

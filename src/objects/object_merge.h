@@ -40,8 +40,4 @@ void merge_object_into(const MapObject& from, MapObject* into, double rename_mar
 // class changed.
 bool update_class(MapObject* object, double rename_margin = 1.0);
 
-// Two objects may be one (the merge): the same class, or each one's class holds at least
-// `min_share` of the other's votes (a detector's look-alike classes for one object).
-bool classes_compatible(const MapObject& a, const MapObject& b, double min_share);
-
 }  // namespace dqo::objects

@@ -83,6 +83,7 @@ ObjectPipelineResult run_object_pipeline(const FrameSource& reader, const Object
     if (progress) progress(i + 1, total);
   }
   result.objects = mapper.objects();
+  result.class_names = mapper.class_names();
   result.ok = result.error.empty();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;

@@ -189,6 +189,21 @@ int main(int argc, char** argv) {
   std::printf("association_ms_median: %.3f (max %.3f)\n", median(r.association_ms),
               r.association_ms.empty() ? 0.0 : *std::max_element(r.association_ms.begin(), r.association_ms.end()));
   std::printf("refinement_ms_per_object_median: %.3f (%zu runs)\n", median(r.refinement_ms), r.refinement_ms.size());
+  // The object table: what a user reads first.
+  std::printf("  ID class            top classes (share of the vote)            P(exists) views  centre (m)                box half extents (m)\n");
+  for (const auto& o : r.objects) {
+    std::string top;
+    for (const auto& c : dqo::objects::top_classes(o, 3, r.class_names)) {
+      char buf[64];
+      std::snprintf(buf, sizeof(buf), "%s%s %.0f%%", top.empty() ? "" : ", ", c.class_name.c_str(), 100.0 * c.share);
+      top += buf;
+    }
+    const dqo::OrientedBox box = o.has_box ? o.box : dqo::box_from_quadric(o.quadric);
+    std::printf("%4llu %-16s %-42s %5.2f %6d  %6.3f %6.3f %6.3f    %5.3f %5.3f %5.3f\n",
+                static_cast<unsigned long long>(o.id), o.class_name.c_str(), top.c_str(),
+                dqo::objects::existence_probability(o), o.observation_count, box.centre.x(), box.centre.y(),
+                box.centre.z(), box.half_extents.x(), box.half_extents.y(), box.half_extents.z());
+  }
   std::printf("wrote: %s\n", out.c_str());
   std::printf("objects: %zu\n", r.objects.size());
   return r.ok ? 0 : 1;

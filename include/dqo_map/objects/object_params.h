@@ -65,10 +65,9 @@ struct MergeParams {
   // min_similarity 0.2; BENCHMARKS.md).
   double min_overlap = 0.7;
   double max_distance = 0.25;          // d: the piece's centre within the whole grown by d (object_merge.h)
-  // "Of one class" (METHOD.md) read through the class histograms: the same mode, or each one's mode
-  // holds at least this share of the other's votes (a real detector's look-alike classes for one
-  // object: a cabinet's pieces voted refrigerator and tv). 1.01: the modes must be equal.
-  double min_class_share = 0.2;
+  // Ellipsoids whose boxes overlap at least this 3D IoU merge whatever their classes: twins a
+  // detector's confusions started (a cup seen as bottle). A cup on a book does not come near. >1: off.
+  double min_iou_3d_any_class = 0.3;
 };
 
 // The object's own surface from depth (src/objects/object_surface.h): its box from its points and
@@ -81,6 +80,9 @@ struct SurfaceParams {
   int max_views = 30;                 // the newest observations' points are used
   double ellipsoid_margin = 1.25;     // points inside the ellipsoid scaled by this are the object's
   int min_points = 60;                // fewer: no surface box (the detections' box stays)
+  // Each extent of the surface box (smallest to smallest, ...) at least this share of the
+  // detections' box's: a thinner one comes from an ellipsoid that cut the points to a sliver.
+  double min_extent_ratio = 0.3;
   double trim_quantile = 0.02;        // each side's extent from this quantile of the points
   double round_footprint = 0.93;      // smallest / largest footprint over yaw above this: round, yaw 0
   double support_reach = 0.1;         // m beyond the ellipsoid's footprint where the support is sought

@@ -6,6 +6,7 @@
 // single-view fallback, its depth. Poses are the dataset's ground truth or a trajectory (for
 // example dqo_track's output) matched to the frames by timestamp.
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 #include "dqo_map/common/tum_trajectory.h"
@@ -33,6 +34,7 @@ struct ObjectPipelineResult {
   bool ok = false;
   std::string error;                          // empty when ok
   std::vector<objects::MapObject> objects;    // confirmed objects, by ID
+  std::map<int, std::string> class_names;     // class ID -> name, as the detections named them
   std::vector<objects::ObjectEvent> events;   // in the order they happened
   std::vector<double> association_ms;         // [keyframe] filter + association + merge + init
   std::vector<double> refinement_ms;          // [refinement run] one object's refinement
