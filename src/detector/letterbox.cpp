@@ -6,7 +6,7 @@
 
 namespace dqo::detector {
 
-Letterbox Letterbox::make(int source_width, int source_height, int input_width, int input_height) {
+Letterbox Letterbox::make(int source_width, int source_height, int input_width, int input_height, bool top_left) {
   if (source_width <= 0 || source_height <= 0 || input_width <= 0 || input_height <= 0) {
     throw std::invalid_argument("Letterbox: sizes must be positive");
   }
@@ -17,6 +17,11 @@ Letterbox Letterbox::make(int source_width, int source_height, int input_width, 
   l.input_height = input_height;
   l.scale = std::min(static_cast<double>(input_width) / source_width,
                      static_cast<double>(input_height) / source_height);
+  if (top_left) {  // YOLOX: int(w * r), the image in the top-left corner
+    l.resized_width = std::clamp(static_cast<int>(source_width * l.scale), 1, input_width);
+    l.resized_height = std::clamp(static_cast<int>(source_height * l.scale), 1, input_height);
+    return l;
+  }
   l.resized_width = std::min(input_width, static_cast<int>(std::lround(source_width * l.scale)));
   l.resized_height = std::min(input_height, static_cast<int>(std::lround(source_height * l.scale)));
   // Ultralytics splits the padding as round(d - 0.1) before, the rest after.

@@ -7,7 +7,6 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/dnn.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "dqo_map/detector/class_names.h"
 #include "dqo_map/detector/letterbox.h"
@@ -19,10 +18,19 @@ struct YoloDetector::Impl {
   YoloParams params;
   std::vector<std::string> names;
   OutputLayout layout;
+  InputConvention input;  // resolved
   DecodeParams decode;
   cv::dnn::Net net;
   std::vector<std::string> output_names;
-  cv::Mat input;  // letterboxed image, reused
+  std::vector<float> blob;  // the input tensor, reused
+
+  // The network on an image; its outputs' memory lives until the next forward.
+  void forward(const ImageRgb8& rgb, const Letterbox& l, std::vector<cv::Mat>* outputs) {
+    make_input_blob(rgb, l, input, &blob);
+    const int dims[] = {1, 3, l.input_height, l.input_width};
+    net.setInput(cv::Mat(4, dims, CV_32F, blob.data()));
+    net.forward(*outputs, output_names);
+  }
 };
 
 namespace {
@@ -43,18 +51,6 @@ std::string opencv_reason(const cv::Exception& e) {
   return m;
 }
 
-// The letterboxed image as the network's input blob: RGB, [0, 1], NCHW.
-cv::Mat make_blob(const cv::Mat& rgb, const Letterbox& l, cv::Mat* canvas) {
-  canvas->create(l.input_height, l.input_width, CV_8UC3);
-  canvas->setTo(cv::Scalar(114, 114, 114));
-  cv::Mat roi = (*canvas)(cv::Rect(l.pad_left, l.pad_top, l.resized_width, l.resized_height));
-  if (l.resized_width == rgb.cols && l.resized_height == rgb.rows)
-    rgb.copyTo(roi);
-  else
-    cv::resize(rgb, roi, roi.size(), 0, 0, cv::INTER_LINEAR);
-  return cv::dnn::blobFromImage(*canvas, 1.0 / 255.0, cv::Size(), cv::Scalar(), /*swapRB=*/false, /*crop=*/false);
-}
-
 std::vector<int> shape_of(const cv::Mat& m) {
   std::vector<int> s;
   for (int d = 0; d < m.dims; ++d) s.push_back(m.size[d]);
@@ -67,6 +63,7 @@ YoloDetector::YoloDetector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) 
 YoloDetector::~YoloDetector() = default;
 
 const OutputLayout& YoloDetector::layout() const { return impl_->layout; }
+const InputConvention& YoloDetector::input_convention() const { return impl_->input; }
 const std::vector<std::string>& YoloDetector::class_names() const { return impl_->names; }
 const YoloParams& YoloDetector::params() const { return impl_->params; }
 
@@ -108,26 +105,56 @@ std::unique_ptr<YoloDetector> YoloDetector::create(const YoloParams& params, std
   }
   impl->output_names = impl->net.getUnconnectedOutLayersNames();
 
-  // One forward on a grey image: the outputs' shapes say the layout (OpenCV cannot tell them before).
+  // One forward on a grey image: the outputs' shapes say the layout (OpenCV cannot tell them before),
+  // then, in the input convention of that layout, their values whether it reads them right.
+  const int iw = params.input_width, ih = params.input_height;
+  const std::string size = std::to_string(iw) + "x" + std::to_string(ih);
+  const ImageRgb8 grey(iw, ih, 3, 114);
   std::vector<cv::Mat> outputs;
-  try {
-    const Letterbox l = Letterbox::make(params.input_width, params.input_height, params.input_width, params.input_height);
-    cv::Mat grey(params.input_height, params.input_width, CV_8UC3, cv::Scalar(114, 114, 114));
-    impl->net.setInput(make_blob(grey, l, &impl->input));
-    impl->net.forward(outputs, impl->output_names);
-  } catch (const cv::Exception& e) {
-    return fail(error, params.model + ": does not run at input " + std::to_string(params.input_width) + "x" +
-                           std::to_string(params.input_height) + " (give input_size the size it was exported with): " +
-                           opencv_reason(e));
-  }
-  std::vector<std::vector<int>> shapes;
-  for (const cv::Mat& m : outputs) {
-    if (m.type() != CV_32F) return fail(error, params.model + ": an output is not float32");
-    shapes.push_back(shape_of(m));
-  }
+  auto probe = [&](std::string* why) {
+    try {
+      impl->forward(grey, Letterbox::make(iw, ih, iw, ih, impl->input.top_left()), &outputs);
+    } catch (const cv::Exception& e) {
+      *why = params.model + ": does not run at input " + size + " (give input_size the size it was exported with): " +
+             opencv_reason(e);
+      return false;
+    }
+    for (const cv::Mat& m : outputs) {
+      if (m.type() != CV_32F) {
+        *why = params.model + ": an output is not float32";
+        return false;
+      }
+    }
+    return true;
+  };
   std::string why;
-  if (!identify_layout(shapes, params.layout, static_cast<int>(impl->names.size()), &impl->layout, &why)) {
+  impl->input = resolve_input_convention(params.input, params.layout == YoloLayout::kAuto ? YoloLayout::kV8 : params.layout);
+  if (!probe(&why)) return fail(error, why);
+  std::vector<std::vector<int>> shapes;
+  for (const cv::Mat& m : outputs) shapes.push_back(shape_of(m));
+  if (!identify_layout(shapes, params.layout, static_cast<int>(impl->names.size()), iw, ih, &impl->layout, &why)) {
     return fail(error, params.model + ": " + why);
+  }
+  const InputConvention probed = impl->input;
+  impl->input = resolve_input_convention(params.input, impl->layout.layout);
+  if (impl->input.scale != probed.scale && !probe(&why)) return fail(error, why);  // grey: only the scale tells
+  const float* values = outputs[impl->layout.detection_output].ptr<float>();
+  if (!check_output(values, impl->layout, &why)) {
+    OutputLayout decoded = impl->layout;  // YOLOX's N, decoded boxes: decode_in_inference, or another family
+    decoded.layout = YoloLayout::kV5;
+    std::string unused;
+    if (params.layout == YoloLayout::kAuto && impl->layout.layout == YoloLayout::kX &&
+        check_output(values, decoded, &unused)) {
+      return fail(error, params.model + ": " + shape_to_string(shapes[impl->layout.detection_output]) +
+                             " has one row per grid point as YOLOX's raw output at " + size +
+                             ", but its boxes are decoded pixels, not grid offsets (a YOLOX export with "
+                             "decode_in_inference, or another anchor-free model): set layout v5 (decoded rows) "
+                             "and the input convention the model was trained with (YOLOX: channel_order bgr, "
+                             "input_scale 1, letterbox top_left)");
+    }
+    return fail(error, params.model + ": its output is not what the " + to_string(impl->layout.layout) +
+                           " layout gives: " + why + ". Set layout (v5, v8, v11, v10 or yolox, the family the "
+                           "model was exported from; --layout for the tools) and input_size");
   }
 
   // Classes to keep or ignore, by name.
@@ -159,9 +186,11 @@ YoloDetections YoloDetector::detect(const ImageRgb8& rgb) {
   Impl& s = *impl_;
   YoloDetections out;
   auto t = std::chrono::steady_clock::now();
-  const Letterbox l = Letterbox::make(rgb.width, rgb.height, s.params.input_width, s.params.input_height);
-  const cv::Mat image(rgb.height, rgb.width, CV_8UC3, const_cast<uint8_t*>(rgb.data.data()));
-  s.net.setInput(make_blob(image, l, &s.input));
+  const Letterbox l =
+      Letterbox::make(rgb.width, rgb.height, s.params.input_width, s.params.input_height, s.input.top_left());
+  make_input_blob(rgb, l, s.input, &s.blob);
+  const int dims[] = {1, 3, l.input_height, l.input_width};
+  s.net.setInput(cv::Mat(4, dims, CV_32F, s.blob.data()));
   out.preprocess_ms = ms_since(t);
   t = std::chrono::steady_clock::now();
   std::vector<cv::Mat> outputs;

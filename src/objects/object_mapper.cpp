@@ -8,6 +8,7 @@
 #include "association.h"
 #include "box_fit.h"
 #include "depth_init.h"
+#include "existence.h"
 #include "detection_filter.h"
 #include "dqo_map/geometry/conic.h"
 #include "dqo_map/objects/object_refinement.h"
@@ -121,7 +122,10 @@ struct ObjectMapper::Impl {
     object->from_boxes = true;
   }
 
-  void add_observation(MapObject* object, KeyFrameId keyframe_id, const Detection2d& d) const {
+  // A detection associated with (or starting) `object`: its observation, class vote and the
+  // belief that it exists. A confirmed object whose class mode changes is renamed (an event).
+  void add_observation(MapObject* object, KeyFrameId keyframe_id, const Detection2d& d,
+                       KeyFrameAssociation* out) const {
     ObjectObservation o;
     o.keyframe_id = keyframe_id;
     o.box = d.box;
@@ -130,34 +134,32 @@ struct ObjectMapper::Impl {
     object->observations.push_back(o);
     ++object->observation_count;
     object->class_votes[d.class_id] += std::max(0.0, static_cast<double>(d.score));
-    update_class(object);
+    const bool renamed = update_class(object, params.labels.rename_margin);
     const auto name = class_names.find(object->class_id);
     if (name != class_names.end()) object->class_name = name->second;
+    if (renamed && object->state == ObjectState::kConfirmed) {
+      ObjectEvent e;
+      e.type = ObjectEvent::Type::kRenamed;
+      e.id = object->id;
+      e.class_id = object->class_id;
+      e.class_name = object->class_name;
+      out->events.push_back(e);
+    }
+    object->existence = after_detection(object->existence, object->class_name, params.lifecycle.existence);
     object->missed = 0;
     object->last_keyframe = keyframe_id;
   }
 
-  // "Should be seen" (for the miss counts): visible, not hidden behind a nearer object, wholly
-  // inside the image (the filter drops boxes cut by the border) and, where depth is known, not
-  // behind something nearer than the ellipsoid's front.
-  bool should_be_seen(const MapObject& object, const VisibleObject& v, const ObjectKeyFrame& kf) const {
+  // What a keyframe says of a visible object it did not detect: nothing when the object touches
+  // the image border (the filter drops boxes cut by it) or hides behind something nearer;
+  // otherwise a miss, weighed by what the depth shows where the object should be.
+  std::optional<MissKind> miss_of(const MapObject& object, const VisibleObject& v, const ObjectKeyFrame& kf) const {
     const PinholeCamera& cam = kf.camera;
-    if (v.unclipped.touches_border(cam.width, cam.height, params.filter.border_margin_px)) return false;
-    if (kf.depth.data == nullptr) return true;
-    const double front = v.depth - object.quadric.semi_axes().maxCoeff();
-    const Eigen::Vector2d c = v.box.centre();
-    const double hw = 0.25 * v.box.width(), hh = 0.25 * v.box.height();
-    int valid = 0, nearer = 0;
-    for (int k = 0; k < 25; ++k) {
-      const int u = static_cast<int>(std::lround(c.x() + hw * ((k % 5) - 2) / 2.0));
-      const int w = static_cast<int>(std::lround(c.y() + hh * ((k / 5) - 2) / 2.0));
-      if (u < 0 || w < 0 || u >= kf.depth.width || w >= kf.depth.height) continue;
-      const float z = kf.depth.at(u, w);
-      if (!(z > 0.0f) || !std::isfinite(z)) continue;
-      ++valid;
-      if (z < front - 0.05) ++nearer;
-    }
-    return valid == 0 || 2 * nearer <= valid;
+    if (v.unclipped.touches_border(cam.width, cam.height, params.filter.border_margin_px)) return std::nullopt;
+    const DepthEvidenceCounts n = depth_evidence(object.quadric, v.box, cam, kf.T_wc, kf.depth);
+    const MissKind kind = classify_miss(n, params.lifecycle.existence);
+    if (kind == MissKind::kOccluded) return std::nullopt;
+    return kind;
   }
 
   void remove(ObjectId id, KeyFrameAssociation* out) {
@@ -289,7 +291,7 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     const int d = assoc.track_to_detection[t];
     if (d < 0) continue;
     MapObject* o = track_objects[t];
-    add_observation(o, kf.id, dets[static_cast<size_t>(d)]);
+    add_observation(o, kf.id, dets[static_cast<size_t>(d)], &out);
     det_object[static_cast<size_t>(d)] = o->id;
     out.verdicts[static_cast<size_t>(filtered.kept[static_cast<size_t>(d)])] = DetectionVerdict::kAssociated;
     seen.insert(o->id);
@@ -300,7 +302,11 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     const size_t t = first_visible_track + k;
     if (assoc.track_to_detection[t] >= 0) continue;
     MapObject* o = track_objects[t];
-    if (should_be_seen(*o, visible[k], kf)) ++o->missed;
+    if (const auto kind = miss_of(*o, visible[k], kf)) {
+      ++o->missed;
+      o->existence = after_miss(o->existence, *kind, o->class_name, params.lifecycle.existence);
+      if (*kind == MissKind::kFreeSpace) ++out.free_space_misses;
+    }
   }
 
   // 6. Unmatched detections start candidates.
@@ -319,7 +325,8 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     o.id = next_id++;
     o.state = ObjectState::kCandidate;
     o.first_keyframe = kf.id;
-    add_observation(&o, kf.id, dets[d]);
+    o.existence = logit(params.lifecycle.existence.prior);
+    add_observation(&o, kf.id, dets[d], &out);
     det_object[d] = o.id;
     out.verdicts[input] = DetectionVerdict::kNewObject;
     out.events.push_back({ObjectEvent::Type::kCreated, o.id, 0});
@@ -329,11 +336,11 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
   }
 
   // Box-plane initialisation and confirmation of the objects seen.
+  const double confirm_log_odds = logit(params.lifecycle.existence.confirm_probability);
   for (const ObjectId id : seen) {
     MapObject& o = objects.at(id);
     try_box_init(&o);
-    if (o.state == ObjectState::kCandidate && o.has_quadric &&
-        o.observation_count >= params.lifecycle.confirm_observations) {
+    if (o.state == ObjectState::kCandidate && o.has_quadric && o.existence >= confirm_log_odds) {
       o.state = ObjectState::kConfirmed;
     }
   }
@@ -356,7 +363,7 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
       const ObjectId from = pool[static_cast<size_t>(m.from)]->id;
       const ObjectId into = pool[static_cast<size_t>(m.into)]->id;
       MapObject& target = objects.at(into);
-      merge_object_into(objects.at(from), &target);
+      merge_object_into(objects.at(from), &target, params.labels.rename_margin);
       try_box_init(&target);
       objects.erase(from);
       first_sequence.erase(from);
@@ -368,19 +375,14 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     }
   }
 
-  // Removal: candidates missed too often or too old, confirmed objects missed too often.
+  // Removal: objects whose belief fell to remove_probability, and candidates not confirmed in time.
+  const double remove_log_odds = logit(params.lifecycle.existence.remove_probability);
   std::vector<ObjectId> to_remove;
   for (const auto& [id, o] : objects) {
-    if (o.state == ObjectState::kCandidate) {
-      const uint64_t age = record.sequence - first_sequence[id];
-      if (o.missed >= params.lifecycle.candidate_max_missed ||
-          (!seen.count(id) && static_cast<int64_t>(age) >= params.lifecycle.candidate_max_age_keyframes)) {
-        to_remove.push_back(id);
-      }
-    } else if (params.lifecycle.remove_after_missed > 0 &&
-               o.missed >= params.lifecycle.remove_after_missed) {
-      to_remove.push_back(id);
-    }
+    const uint64_t age = record.sequence - first_sequence[id];
+    const bool expired = o.state == ObjectState::kCandidate && !seen.count(id) &&
+                         static_cast<int64_t>(age) >= params.lifecycle.existence.candidate_max_age_keyframes;
+    if (o.existence <= remove_log_odds || expired) to_remove.push_back(id);
   }
   for (const ObjectId id : to_remove) remove(id, &out);
 
@@ -464,6 +466,8 @@ const MapObject* ObjectMapper::find(ObjectId id) const {
 }
 
 ObjectId ObjectMapper::next_id() const { return impl_->next_id; }
+
+const std::map<int, std::string>& ObjectMapper::class_names() const { return impl_->class_names; }
 
 const ObjectMapperParams& ObjectMapper::params() const { return impl_->params; }
 

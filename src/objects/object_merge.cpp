@@ -28,7 +28,7 @@ std::vector<MergePair> find_merges(const std::vector<const MapObject*>& objects,
       if (used[order[b]] || !(small.box.area() < big.box.area())) continue;
       const MapObject& i = *objects[big.index];
       const MapObject& j = *objects[small.index];
-      if (i.class_id != j.class_id || !i.has_quadric || !j.has_quadric) continue;
+      if (!classes_compatible(i, j, params.min_class_share) || !i.has_quadric || !j.has_quadric) continue;
       if (!(overlap_ratio(big.box, small.box) > params.min_overlap)) continue;
       if (!inside_grown_ellipsoid(i.quadric, j.quadric.centre(), params.max_distance)) continue;
       pairs.push_back({small.index, big.index});
@@ -39,19 +39,41 @@ std::vector<MergePair> find_merges(const std::vector<const MapObject*>& objects,
   return pairs;
 }
 
-void update_class(MapObject* object) {
+bool classes_compatible(const MapObject& a, const MapObject& b, double min_share) {
+  if (a.class_id == b.class_id) return true;
+  auto share = [](const MapObject& o, int class_id) {
+    double total = 0.0;
+    for (const auto& [c, v] : o.class_votes) total += v;
+    const auto it = o.class_votes.find(class_id);
+    return total > 0.0 && it != o.class_votes.end() ? it->second / total : 0.0;
+  };
+  return share(a, b.class_id) >= min_share && share(b, a.class_id) >= min_share;
+}
+
+bool update_class(MapObject* object, double rename_margin) {
   double total = 0.0, best = -1.0;
+  int best_id = object->class_id;
   for (const auto& [class_id, votes] : object->class_votes) {
     total += votes;
     if (votes > best) {
       best = votes;
-      object->class_id = class_id;
+      best_id = class_id;
     }
   }
-  object->confidence = total > 0.0 ? best / total : 0.0;
+  const auto current = object->class_votes.find(object->class_id);
+  // Hysteresis: two look-alike classes with about equal votes would otherwise rename the object
+  // back and forth with every detection.
+  const bool keep = current != object->class_votes.end() && best_id != object->class_id &&
+                    best <= rename_margin * current->second;
+  const int chosen = keep ? object->class_id : best_id;
+  const bool changed = chosen != object->class_id;
+  object->class_id = chosen;
+  const auto c = object->class_votes.find(chosen);
+  object->confidence = total > 0.0 && c != object->class_votes.end() ? c->second / total : 0.0;
+  return changed;
 }
 
-void merge_object_into(const MapObject& from, MapObject* into) {
+void merge_object_into(const MapObject& from, MapObject* into, double rename_margin) {
   std::vector<ObjectObservation> merged = into->observations;
   for (const ObjectObservation& o : from.observations) {
     const bool taken = std::any_of(merged.begin(), merged.end(), [&](const ObjectObservation& m) {
@@ -68,11 +90,13 @@ void merge_object_into(const MapObject& from, MapObject* into) {
   for (const auto& [class_id, votes] : from.class_votes) into->class_votes[class_id] += votes;
   into->observation_count += from.observation_count;
   into->missed = std::min(into->missed, from.missed);
+  // Both were evidence of one object; the stronger belief stands for it.
+  into->existence = std::max(into->existence, from.existence);
   into->first_keyframe = std::min(into->first_keyframe, from.first_keyframe);
   into->last_keyframe = std::max(into->last_keyframe, from.last_keyframe);
   if (from.state == ObjectState::kConfirmed) into->state = ObjectState::kConfirmed;
   if (from.class_name.size() && into->class_name.empty()) into->class_name = from.class_name;
-  update_class(into);
+  update_class(into, rename_margin);
 }
 
 }  // namespace dqo::objects

@@ -33,9 +33,15 @@ bool inside_grown_ellipsoid(const DualQuadric& q, const Eigen::Vector3d& p_w, do
 // Moves `from`'s observations (one per keyframe: `into`'s wins a tie), class votes and counts into
 // `into` and recomputes its class. The quadric of `into` is kept (the refinement over the merged
 // observations follows).
-void merge_object_into(const MapObject& from, MapObject* into);
+void merge_object_into(const MapObject& from, MapObject* into, double rename_margin = 1.0);
 
-// The class vote winner and its share; for the mapper and the merge.
-void update_class(MapObject* object);
+// The class vote's mode and its share; for the mapper and the merge. The object keeps its class
+// while no other has more than rename_margin times its votes (1: the plain mode). True when the
+// class changed.
+bool update_class(MapObject* object, double rename_margin = 1.0);
+
+// Two objects may be one (the merge): the same class, or each one's class holds at least
+// `min_share` of the other's votes (a detector's look-alike classes for one object).
+bool classes_compatible(const MapObject& a, const MapObject& b, double min_share);
 
 }  // namespace dqo::objects

@@ -1,5 +1,6 @@
 #include "dqo_map/objects/params_yaml.h"
 
+#include <cmath>
 #include <string>
 
 #include "dqo_map/config/yaml_schema.h"
@@ -27,6 +28,17 @@ const char* distance_kind_name(QuadricDistanceKind kind) {
   return kind == QuadricDistanceKind::kQD ? "qd" : "w2";
 }
 
+double logit_of(double p) { return std::log(p / (1.0 - p)); }
+
+// recall_by_class as one string, "class: recall, class: recall" (a YAML string; the schema has
+// no maps).
+config::Choice recall_by_class_choice(std::map<std::string, double>* target) {
+  return config::Choice{[target](const std::string& text) { return parse_recall_by_class(text, target); },
+                        // Quoted: the list holds ': ', which YAML would read as a mapping.
+                        [target]() { return "\"" + recall_by_class_to_string(*target) + "\""; },
+                        "'class name: recall, ...' with recalls in (0, 1)"};
+}
+
 // One table describes every parameter: the shared reader and writer (config/yaml_schema.h) both
 // walk it, so that a field added to the table is read and written alike.
 Section schema(ObjectMapperParams& p) {
@@ -35,6 +47,8 @@ Section schema(ObjectMapperParams& p) {
   AssociationParams& a = p.association;
   MergeParams& m = p.merge;
   LifecycleParams& l = p.lifecycle;
+  ExistenceParams& e = l.existence;
+  LabelParams& lb = p.labels;
   RefinementParams& r = p.refinement;
   BoxFitParams& b = p.box_fit;
   return Section{
@@ -83,19 +97,37 @@ Section schema(ObjectMapperParams& p) {
                           {"enabled", &m.enabled},
                           {"min_overlap", &m.min_overlap, 0.0, 1.0},
                           {"max_distance", &m.max_distance, 0.0, kInf},
+                          {"min_class_share", &m.min_class_share, 0.0, 1.01},
+                      },
+                      {}},
+              Section{"labels",
+                      {
+                          {"rename_margin", &lb.rename_margin, 1.0, kInf},
+                          {"top_classes", &lb.top_classes, 1, 1000},
                       },
                       {}},
               Section{"lifecycle",
                       {
-                          {"confirm_observations", &l.confirm_observations, 1, 100000},
-                          {"candidate_max_missed", &l.candidate_max_missed, 1, 100000},
-                          {"candidate_max_age_keyframes", &l.candidate_max_age_keyframes, 1, 100000000},
-                          {"remove_after_missed", &l.remove_after_missed, 0, 100000000},
                           {"min_box_views", &l.min_box_views, 3, 1000},
                           {"max_depth_disagreement", &l.max_depth_disagreement, 0.0, kInf},
                           {"single_view_fallback", &l.single_view_fallback},
                       },
                       {
+                          Section{"existence",
+                                  {
+                                      {"prior", &e.prior, 1e-6, 1.0 - 1e-6},
+                                      {"recall", &e.recall, 1e-3, 1.0 - 1e-3},
+                                      {"recall_by_class", recall_by_class_choice(&e.recall_by_class)},
+                                      {"false_alarm_rate", &e.false_alarm_rate, 1e-3, 1.0 - 1e-3},
+                                      {"supported_miss_weight", &e.supported_miss_weight, 0.0, 1.0},
+                                      {"free_space", &e.free_space, -kInf, 0.0},
+                                      {"min_surface_fraction", &e.min_surface_fraction, 0.0, 1.0},
+                                      {"confirm_probability", &e.confirm_probability, 1e-6, 1.0 - 1e-6},
+                                      {"remove_probability", &e.remove_probability, 1e-6, 1.0 - 1e-6},
+                                      {"max_log_odds", &e.max_log_odds, 1e-3, 100.0},
+                                      {"candidate_max_age_keyframes", &e.candidate_max_age_keyframes, 1, 100000000},
+                                  },
+                                  {}},
                           Section{"box_init",
                                   {
                                       {"border_margin_px", &l.box_init.border_margin_px, 0.0, kInf},
@@ -159,12 +191,18 @@ std::optional<ObjectMapperParams> parse_object_params(const std::string& text,
     return bad;
   };
   const LifecycleParams& l = params.lifecycle;
+  const ExistenceParams& e = l.existence;
   if (cross(l.depth_init.min_depth >= l.depth_init.max_depth,
             "objects.lifecycle.depth_init.min_depth must be below max_depth") ||
       cross(l.depth_init.low_quantile >= l.depth_init.high_quantile,
             "objects.lifecycle.depth_init.low_quantile must be below high_quantile") ||
       cross(params.refinement.min_semi_axis >= params.refinement.max_semi_axis,
             "objects.refinement.min_semi_axis must be below max_semi_axis") ||
+      cross(e.remove_probability >= e.confirm_probability,
+            "objects.lifecycle.existence.remove_probability must be below confirm_probability") ||
+      cross(logit_of(e.prior) + e.log_odds_detected("") <= logit_of(e.remove_probability),
+            "objects.lifecycle.existence: a new candidate (prior and one detection) must start above "
+            "remove_probability, or every object is removed at once") ||
       cross(params.refinement.min_views > params.refinement.max_views,
             "objects.refinement.min_views must not exceed max_views")) {
     return std::nullopt;

@@ -16,7 +16,10 @@ namespace dqo::objects {
 namespace {
 
 constexpr char kMagic[] = "dqo_object_state";
-constexpr int kVersion = 1;
+// 2: an `existence` line per object (the belief's log-odds). Version 1 files still load: their
+// confirmed objects start at kVersion1Confirmed, candidates at even odds.
+constexpr int kVersion = 2;
+constexpr double kVersion1Confirmed = 4.0;
 
 std::string num(double v) {
   char buf[40];
@@ -49,6 +52,7 @@ bool write_state_file(const std::string& path, const std::map<ObjectId, MapObjec
         << o.last_keyframe << " " << o.class_votes.size();
     for (const auto& [class_id, votes] : o.class_votes) out << " " << class_id << " " << num(votes);
     out << "\nname " << o.class_name << "\n";
+    out << "existence " << num(o.existence) << "\n";
     if (o.has_box) {
       const Eigen::Quaterniond qb(o.box.rotation);
       out << "box";
@@ -94,9 +98,11 @@ bool read_state_file(const std::string& path, std::map<ObjectId, MapObject>* obj
     std::string magic;
     int version = 0;
     if (!(s >> magic >> version) || magic != kMagic) {
-      return fail(error, where() + "not an object state file (expected '" + kMagic + " 1')");
+      return fail(error, where() + "not an object state file (expected '" + kMagic + " " + std::to_string(kVersion) + "')");
     }
-    if (version != kVersion) return fail(error, where() + "unsupported version " + std::to_string(version));
+    if (version != kVersion && version != 1) {
+      return fail(error, where() + "unsupported version " + std::to_string(version));
+    }
   }
   MapObject* last = nullptr;
   while (std::getline(in, line)) {
@@ -139,6 +145,7 @@ bool read_state_file(const std::string& path, std::map<ObjectId, MapObject>* obj
       if (o.id == 0 || read.count(o.id)) return fail(error, where() + "object ID 0 or listed twice");
       if (state != "confirmed" && state != "candidate") return fail(error, where() + "bad state '" + state + "'");
       o.state = state == "confirmed" ? ObjectState::kConfirmed : ObjectState::kCandidate;
+      o.existence = o.state == ObjectState::kConfirmed ? kVersion1Confirmed : 0.0;
       o.has_quadric = has_quadric != 0;
       o.from_boxes = from_boxes != 0;
       const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
@@ -156,6 +163,10 @@ bool read_state_file(const std::string& path, std::map<ObjectId, MapObject>* obj
     } else if (tag == "name") {
       if (!last) return fail(error, where() + "'name' before any object");
       last->class_name = line.size() > 5 ? line.substr(5) : std::string();
+    } else if (tag == "existence") {
+      double e = 0.0;
+      if (!last || !(s >> e) || !std::isfinite(e)) return fail(error, where() + "malformed existence line");
+      last->existence = e;
     } else if (tag == "box") {
       if (!last || last->has_box) return fail(error, where() + "'box' without its object");
       double v[10];

@@ -250,7 +250,7 @@ void AssociationNode::on_mapped_objects(const dqo_map::ObjectArrayConstPtr& msg)
 }
 
 dqo_map::Object AssociationNode::object_msg(const objects::MapObject& o) const {
-  dqo_map::Object msg = to_object_msg(o);
+  dqo_map::Object msg = to_object_msg(o, mapper_->class_names(), mapper_->params().labels.top_classes);
   const auto it = num_gaussians_.find(o.id);
   if (it != num_gaussians_.end()) msg.num_gaussians = it->second;
   return msg;
@@ -370,7 +370,13 @@ void AssociationNode::publish(const std_msgs::Header& header, const objects::Key
   std::vector<objects::ObjectId> deleted;
   for (const objects::ObjectEvent& e : result.events) {
     events_pub_.publish(to_event_msg(e, header));
-    if (e.type != objects::ObjectEvent::Type::kCreated) deleted.push_back(e.id);
+    if (e.type == objects::ObjectEvent::Type::kMerged || e.type == objects::ObjectEvent::Type::kRemoved) {
+      deleted.push_back(e.id);
+    }
+    if (e.type == objects::ObjectEvent::Type::kRenamed) {
+      ROS_INFO("association: object %llu renamed %s (its detections' class vote changed)",
+               static_cast<unsigned long long>(e.id), e.class_name.c_str());
+    }
   }
   // CONFIRMED after the keyframe's other events: the object is in the array published next.
   for (const objects::ObjectId id : result.confirmed) {

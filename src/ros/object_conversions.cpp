@@ -25,7 +25,8 @@ void set_object_geometry(const DualQuadric& q, const OrientedBox& box, dqo_map::
   msg->box_half_extents.z = box.half_extents.z();
 }
 
-dqo_map::Object to_object_msg(const objects::MapObject& object) {
+dqo_map::Object to_object_msg(const objects::MapObject& object, const std::map<int, std::string>& class_names,
+                              int top_classes) {
   dqo_map::Object msg;
   msg.id = object.id;
   msg.class_id = object.class_id;
@@ -37,6 +38,12 @@ dqo_map::Object to_object_msg(const objects::MapObject& object) {
   // observation_count also counts observations from before a restart and of merged pieces.
   msg.observations = static_cast<uint32_t>(std::max<size_t>(object.observation_count, object.observations.size()));
   msg.confidence = static_cast<float>(object.confidence);
+  for (const objects::ClassShare& c : objects::top_classes(object, top_classes, class_names)) {
+    msg.top_class_ids.push_back(c.class_id);
+    msg.top_class_names.push_back(c.class_name);
+    msg.top_class_shares.push_back(static_cast<float>(c.share));
+  }
+  msg.existence = static_cast<float>(objects::existence_probability(object));
   msg.num_gaussians = 0;
   return msg;
 }
@@ -48,6 +55,11 @@ dqo_map::ObjectEvent to_event_msg(const objects::ObjectEvent& event, const std_m
     case objects::ObjectEvent::Type::kCreated: msg.type = dqo_map::ObjectEvent::CREATED; break;
     case objects::ObjectEvent::Type::kMerged: msg.type = dqo_map::ObjectEvent::MERGED; break;
     case objects::ObjectEvent::Type::kRemoved: msg.type = dqo_map::ObjectEvent::REMOVED; break;
+    case objects::ObjectEvent::Type::kRenamed: msg.type = dqo_map::ObjectEvent::RENAMED; break;
+  }
+  if (event.type == objects::ObjectEvent::Type::kRenamed) {
+    msg.class_id = event.class_id;
+    msg.class_name = event.class_name;
   }
   msg.id = event.id;
   msg.into_id = event.type == objects::ObjectEvent::Type::kMerged ? event.into_id : 0;

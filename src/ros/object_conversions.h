@@ -3,6 +3,7 @@
 // objects, events, detections, KeyFrameObjects, instance images and rviz markers. Field copies and
 // relabelling only; the object maths lives in the core. Private to src/ros.
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -24,7 +25,9 @@ namespace dqo::ros_bridge {
 // Pose = the quadric's centre and rotation (columns = the semi-axes' directions), semi_axes in that
 // order, dual_quadric = Q* normalised to Q*(3,3) = -1, row-major. num_gaussians stays 0: the
 // mapping nodelet owns the Gaussians.
-dqo_map::Object to_object_msg(const objects::MapObject& object);
+// class_names: class ID -> name for the top classes (ObjectMapper::class_names()).
+dqo_map::Object to_object_msg(const objects::MapObject& object,
+                              const std::map<int, std::string>& class_names = {}, int top_classes = 3);
 // The geometry fields of an Object message (pose, semi_axes, dual_quadric, box_pose,
 // box_half_extents): one place for the object stage's objects and the mapping nodelet's.
 void set_object_geometry(const DualQuadric& quadric, const OrientedBox& box, dqo_map::Object* msg);

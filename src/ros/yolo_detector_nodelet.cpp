@@ -57,8 +57,13 @@ bool YoloDetectorNodelet::read_params(dqo::detector::YoloParams* p, std::string*
   if (p->classes.empty()) p->classes = ros::package::getPath("dqo_map") + "/config/coco.names";
   std::vector<int> input_size{p->input_width, p->input_height};
   pnh.param("input_size", input_size, input_size);
-  std::string layout = "auto";
+  std::string layout = "auto", channel_order = "auto", input_scale = "auto", letterbox = "auto";
   pnh.param("layout", layout, layout);
+  pnh.param("channel_order", channel_order, channel_order);
+  double scale_number = 0.0;  // input_scale: a number (1, 0.00392) or text ("1/255", "auto")
+  if (pnh.getParam("input_scale", scale_number)) input_scale = std::to_string(scale_number);
+  else pnh.param("input_scale", input_scale, input_scale);
+  pnh.param("letterbox", letterbox, letterbox);
   double confidence = p->confidence, nms = p->nms_iou, mask = p->mask_threshold;
   pnh.param("confidence", confidence, confidence);
   pnh.param("nms_iou", nms, nms);
@@ -70,7 +75,8 @@ bool YoloDetectorNodelet::read_params(dqo::detector::YoloParams* p, std::string*
   pnh.param("every_n", every_n_, every_n_);
   pnh.param("keyframes_only", keyframes_only_, keyframes_only_);
   pnh.param("buffer_size", buffer_size_, buffer_size_);
-  const std::set<std::string> known = {"model", "classes", "input_size", "layout", "confidence", "nms_iou",
+  const std::set<std::string> known = {"model", "classes", "input_size", "layout", "channel_order", "input_scale",
+                                       "letterbox", "confidence", "nms_iou",
                                        "mask_threshold", "max_detections", "keep_classes", "ignore_classes",
                                        "cuda", "every_n", "keyframes_only", "buffer_size", "queue_size"};
   for (const std::string& name : dqo::ros_bridge::unknown_private_params(pnh, known)) {
@@ -83,7 +89,14 @@ bool YoloDetectorNodelet::read_params(dqo::detector::YoloParams* p, std::string*
   p->input_width = input_size[0];
   p->input_height = input_size[1];
   if (!dqo::detector::parse_yolo_layout(layout, &p->layout)) {
-    *error = "layout is auto, v5, v8, v11 or v10, not " + layout;
+    *error = "layout is auto, v5, v8, v11, v10 or yolox, not " + layout;
+    return false;
+  }
+  if (!dqo::detector::parse_channel_order(channel_order, &p->input.channels) ||
+      !dqo::detector::parse_input_scale(input_scale, &p->input.scale) ||
+      !dqo::detector::parse_pad_placement(letterbox, &p->input.pad)) {
+    *error = "channel_order is auto, rgb or bgr; input_scale auto, 1, 1/255 or a number; letterbox auto, centre or "
+             "top_left (not " + channel_order + ", " + input_scale + ", " + letterbox + ")";
     return false;
   }
   p->confidence = static_cast<float>(confidence);
@@ -121,8 +134,9 @@ void YoloDetectorNodelet::onInit() {
                             &YoloDetectorNodelet::on_image, this);
   if (keyframes_only_) keyframe_sub_ = nh.subscribe("keyframes", 10, &YoloDetectorNodelet::on_keyframe, this);
   report_timer_ = nh.createWallTimer(ros::WallDuration(10.0), &YoloDetectorNodelet::on_report, this);
-  NODELET_INFO("yolo_detector: %s (%s), input %dx%d, %zu classes, confidence %.2f; %s -> %s, %s",
-               params.model.c_str(), detector_->layout().describe().c_str(), params.input_width, params.input_height,
+  NODELET_INFO("yolo_detector: %s (%s; input %s), input %dx%d, %zu classes, confidence %.2f; %s -> %s, %s",
+               params.model.c_str(), detector_->layout().describe().c_str(),
+               detector_->input_convention().describe().c_str(), params.input_width, params.input_height,
                detector_->class_names().size(), params.confidence, image_sub_.getTopic().c_str(),
                pub_.getTopic().c_str(),
                keyframes_only_ ? ("the images of " + keyframe_sub_.getTopic()).c_str()

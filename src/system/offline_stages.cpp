@@ -26,6 +26,8 @@ mapping::MappingEvent to_mapping_event(const objects::ObjectEvent& e) {
     case objects::ObjectEvent::Type::kRemoved:
       m.type = mapping::MappingEvent::Type::kRemoved;
       break;
+    case objects::ObjectEvent::Type::kRenamed:  // nothing for the Gaussians: callers skip it
+      break;
   }
   m.id = e.id;
   m.into_id = e.into_id;
@@ -157,7 +159,9 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
               ? instance_for_detections(frame.instance, r.filtered)
               : objects::renumber_instance(detector_instance, r.filtered_source);
     }
-    for (const objects::ObjectEvent& e : r.events) out.events.push_back(to_mapping_event(e));
+    for (const objects::ObjectEvent& e : r.events) {
+      if (e.type != objects::ObjectEvent::Type::kRenamed) out.events.push_back(to_mapping_event(e));
+    }
     out.objects = to_object_records(mapper->objects());
     out.ms = ms_since(t0);  // the stage's own time: an observer's (drawing, writing) is not counted
     if (observer) observer(ObjectStageView{kf, okf.detections, r, mapper->objects(true)});

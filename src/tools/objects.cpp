@@ -176,15 +176,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "dqo_objects: %s\n", error.c_str());
     return 1;
   }
-  int created = 0, merged = 0, removed = 0;
+  int created = 0, merged = 0, removed = 0, renamed = 0;
   for (const auto& e : r.events) {
     created += e.type == dqo::objects::ObjectEvent::Type::kCreated;
     merged += e.type == dqo::objects::ObjectEvent::Type::kMerged;
     removed += e.type == dqo::objects::ObjectEvent::Type::kRemoved;
+    renamed += e.type == dqo::objects::ObjectEvent::Type::kRenamed;
   }
   std::printf("frames: %d (without pose %d), keyframes: %d\n", r.frames, r.frames_without_pose, r.keyframes);
   std::printf("detections: %d (rejected %d)\n", r.detections, r.rejected_detections);
-  std::printf("events: %d created, %d merged, %d removed\n", created, merged, removed);
+  std::printf("events: %d created, %d merged, %d removed, %d renamed\n", created, merged, removed, renamed);
   std::printf("association_ms_median: %.3f (max %.3f)\n", median(r.association_ms),
               r.association_ms.empty() ? 0.0 : *std::max_element(r.association_ms.begin(), r.association_ms.end()));
   std::printf("refinement_ms_per_object_median: %.3f (%zu runs)\n", median(r.refinement_ms), r.refinement_ms.size());

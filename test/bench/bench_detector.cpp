@@ -6,9 +6,11 @@
 //   2. Full inference at 640x640 of a random-weight network of YOLOv8n's size (3.2 M parameters,
 //      8.7 GFLOPs; test/bench/yolo_random_model.py exports it with Debian's python3-torch) on a
 //      640x480 image: pre-processing, inference and decoding, median of --repeats after 3 warm-ups,
-//      at each thread count of --threads.
+//      at each thread count of --threads. With --model, that model at --input-size (e.g. the real
+//      YOLOX-Nano: --model ../shared/models/yolox_nano/yolox_nano.onnx --input-size 416x416); its
+//      time on real frames: dqo_detect's per-frame figures.
 //
-//   bench_detector [--repeats 20] [--threads 1,2] [--model M.onnx (instead of exporting one)]
+//   bench_detector [--repeats 20] [--threads 1,2] [--model M.onnx (instead of exporting one)] [--input-size WxH]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -64,10 +66,10 @@ std::vector<float> synthetic_output(const OutputLayout& l, int objects, int per_
   return out;
 }
 
-void bench_decode(const char* name, const std::vector<std::vector<int>>& shapes) {
+void bench_decode(const char* name, const std::vector<std::vector<int>>& shapes, int input = 640) {
   OutputLayout l;
   std::string error;
-  if (!identify_layout(shapes, YoloLayout::kAuto, 80, &l, &error)) {
+  if (!identify_layout(shapes, YoloLayout::kAuto, 80, input, input, &l, &error)) {
     std::fprintf(stderr, "bench_detector: %s\n", error.c_str());
     std::exit(1);
   }
@@ -94,7 +96,7 @@ void bench_decode(const char* name, const std::vector<std::vector<int>>& shapes)
 void bench_masks() {
   OutputLayout l;
   std::string error;
-  if (!identify_layout({{1, 116, 8400}, {1, 32, 160, 160}}, YoloLayout::kAuto, 80, &l, &error)) std::exit(1);
+  if (!identify_layout({{1, 116, 8400}, {1, 32, 160, 160}}, YoloLayout::kAuto, 80, 640, 640, &l, &error)) std::exit(1);
   const std::vector<float> out = synthetic_output(l, 30, 12, 2);
   std::mt19937 rng(5);
   std::normal_distribution<float> n(0.f, 1.f);
@@ -129,17 +131,20 @@ int main(int argc, char** argv) {
   int repeats = 20;
   std::vector<int> threads = {1, 2};
   std::string model;
+  int input_w = 640, input_h = 640;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--repeats")) repeats = std::max(1, std::atoi(argv[i + 1]));
     else if (!std::strcmp(argv[i], "--threads")) threads = parse_list(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--model")) model = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--input-size") && std::sscanf(argv[i + 1], "%dx%d", &input_w, &input_h) == 2) continue;
     else {
-      std::fprintf(stderr, "usage: bench_detector [--repeats N] [--threads 1,2] [--model M.onnx]\n");
+      std::fprintf(stderr, "usage: bench_detector [--repeats N] [--threads 1,2] [--model M.onnx] [--input-size WxH]\n");
       return 2;
     }
   }
   bench_decode("YOLOv8 [1, 84, 8400]", {{1, 84, 8400}});
   bench_decode("YOLOv5 [1, 25200, 85]", {{1, 25200, 85}});
+  bench_decode("YOLOX [1, 3549, 85] @416", {{1, 3549, 85}}, 416);
   bench_masks();
 
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "dqo_bench_detector";
@@ -160,6 +165,7 @@ int main(int argc, char** argv) {
   YoloParams params;
   params.model = model;
   params.classes = DQO_SOURCE_DIR "/config/coco.names";
+  params.input_width = input_w, params.input_height = input_h;
   std::string error;
   auto detector = YoloDetector::create(params, &error);
   if (!detector) {
@@ -182,9 +188,10 @@ int main(int argc, char** argv) {
       total.push_back(all);
       detections = d.detections.size();
     }
-    std::printf("inference 640x640 (%s), %d thread%s: pre-processing %.2f ms, inference %.1f ms, decoding %.2f ms, "
+    std::printf("inference %dx%d (%s; %s) on a 640x480 image, %d thread%s: pre-processing %.2f ms, inference %.1f ms, decoding %.2f ms, "
                 "all %.1f ms per frame (%.1f frames/s), %zu detections; median of %d\n",
-                detector->layout().describe().c_str(), t, t == 1 ? "" : "s", dqo::median(pre), dqo::median(infer),
+                input_w, input_h, detector->layout().describe().c_str(),
+                detector->input_convention().describe().c_str(), t, t == 1 ? "" : "s", dqo::median(pre), dqo::median(infer),
                 dqo::median(decode), dqo::median(total), 1000.0 / dqo::median(total), detections, repeats);
   }
   return 0;

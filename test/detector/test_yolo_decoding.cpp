@@ -67,32 +67,32 @@ TEST(Letterbox, RoundTripsAndFitsOnRandomSizes) {
 TEST(YoloLayout, PicksEachExportFromItsShapes) {
   OutputLayout l;
   std::string error;
-  ASSERT_TRUE(identify_layout({{1, 84, 8400}}, YoloLayout::kAuto, 80, &l, &error)) << error;
+  ASSERT_TRUE(identify_layout({{1, 84, 8400}}, YoloLayout::kAuto, 80, 640, 640, &l, &error)) << error;
   EXPECT_EQ(l.layout, YoloLayout::kV8);
   EXPECT_EQ(l.num_candidates, 8400);
   EXPECT_EQ(l.num_classes, 80);
   EXPECT_EQ(l.proto_output, -1);
-  ASSERT_TRUE(identify_layout({{1, 25200, 85}}, YoloLayout::kAuto, 80, &l, &error)) << error;
+  ASSERT_TRUE(identify_layout({{1, 25200, 85}}, YoloLayout::kAuto, 80, 640, 640, &l, &error)) << error;
   EXPECT_EQ(l.layout, YoloLayout::kV5);
   EXPECT_EQ(l.num_candidates, 25200);
   // -seg: prototypes second or first.
-  ASSERT_TRUE(identify_layout({{1, 32, 160, 160}, {1, 116, 8400}}, YoloLayout::kAuto, 80, &l, &error)) << error;
+  ASSERT_TRUE(identify_layout({{1, 32, 160, 160}, {1, 116, 8400}}, YoloLayout::kAuto, 80, 640, 640, &l, &error)) << error;
   EXPECT_EQ(l.layout, YoloLayout::kV8);
   EXPECT_EQ(l.detection_output, 1);
   EXPECT_EQ(l.proto_output, 0);
   EXPECT_EQ(l.mask_dim, 32);
   EXPECT_EQ(l.num_classes, 80);
   EXPECT_EQ(l.proto_height, 160);
-  ASSERT_TRUE(identify_layout({{1, 25200, 117}, {1, 32, 160, 160}}, YoloLayout::kAuto, 80, &l, &error)) << error;
+  ASSERT_TRUE(identify_layout({{1, 25200, 117}, {1, 32, 160, 160}}, YoloLayout::kAuto, 80, 640, 640, &l, &error)) << error;
   EXPECT_EQ(l.layout, YoloLayout::kV5);
   EXPECT_EQ(l.num_classes, 80);
   // Few candidates (as the tests' models have): the class count decides, not the shape's proportions.
-  ASSERT_TRUE(identify_layout({{1, 7, 10}}, YoloLayout::kAuto, 3, &l, &error)) << error;
+  ASSERT_TRUE(identify_layout({{1, 7, 10}}, YoloLayout::kAuto, 3, 64, 64, &l, &error)) << error;
   EXPECT_EQ(l.layout, YoloLayout::kV8);
-  ASSERT_TRUE(identify_layout({{1, 10, 8}}, YoloLayout::kAuto, 3, &l, &error)) << error;
-  EXPECT_EQ(l.layout, YoloLayout::kV5);
+  ASSERT_TRUE(identify_layout({{1, 252, 8}}, YoloLayout::kAuto, 3, 64, 64, &l, &error)) << error;
+  EXPECT_EQ(l.layout, YoloLayout::kV5) << "3 anchors x (8x8 + 4x4 + 2x2) = 252 rows at 64x64";
   // v10 (one-to-many head) is v8's layout when asked for.
-  ASSERT_TRUE(identify_layout({{84, 8400}}, YoloLayout::kV10, 80, &l, &error)) << error;
+  ASSERT_TRUE(identify_layout({{84, 8400}}, YoloLayout::kV10, 80, 640, 640, &l, &error)) << error;
   EXPECT_EQ(l.layout, YoloLayout::kV10);
   EXPECT_TRUE(l.channels_first());
 }
@@ -100,18 +100,18 @@ TEST(YoloLayout, PicksEachExportFromItsShapes) {
 TEST(YoloLayout, RefusesWhatMatchesNoExportWithAReason) {
   OutputLayout l;
   std::string error;
-  EXPECT_FALSE(identify_layout({{1, 2, 3, 4}}, YoloLayout::kAuto, 80, &l, &error));
+  EXPECT_FALSE(identify_layout({{1, 2, 3, 4}}, YoloLayout::kAuto, 80, 640, 640, &l, &error));
   EXPECT_NE(error.find("no [1, A, B] detection output"), std::string::npos) << error;
-  EXPECT_FALSE(identify_layout({{1, 84, 8400}, {1, 84, 8400}}, YoloLayout::kAuto, 80, &l, &error));
+  EXPECT_FALSE(identify_layout({{1, 84, 8400}, {1, 84, 8400}}, YoloLayout::kAuto, 80, 640, 640, &l, &error));
   EXPECT_NE(error.find("match no YOLO export"), std::string::npos) << error;
-  EXPECT_FALSE(identify_layout({{1, 300, 6}}, YoloLayout::kAuto, 80, &l, &error));
+  EXPECT_FALSE(identify_layout({{1, 300, 6}}, YoloLayout::kAuto, 80, 640, 640, &l, &error));
   EXPECT_NE(error.find("NMS-free"), std::string::npos) << error;
   // The class count: 81 names for an 80-class model.
-  EXPECT_FALSE(identify_layout({{1, 84, 8400}}, YoloLayout::kAuto, 81, &l, &error));
+  EXPECT_FALSE(identify_layout({{1, 84, 8400}}, YoloLayout::kAuto, 81, 640, 640, &l, &error));
   EXPECT_NE(error.find("81 names"), std::string::npos) << error;
   EXPECT_NE(error.find("80 classes"), std::string::npos) << error;
-  EXPECT_FALSE(identify_layout({{1, 84, 8400}}, YoloLayout::kV5, 80, &l, &error)) << "8400 - 5 classes";
-  EXPECT_FALSE(identify_layout({{1, 3, 3}}, YoloLayout::kAuto, 0, &l, &error));
+  EXPECT_FALSE(identify_layout({{1, 84, 8400}}, YoloLayout::kV5, 80, 640, 640, &l, &error)) << "8400 - 5 classes";
+  EXPECT_FALSE(identify_layout({{1, 3, 3}}, YoloLayout::kAuto, 0, 640, 640, &l, &error));
 }
 
 // Three classes; candidates in input pixels of a 64x64 input.
@@ -134,7 +134,7 @@ TEST(YoloDecode, ScoresBoxesAndSuppressesInBothLayouts) {
     OutputLayout l;
     std::string error;
     ASSERT_TRUE(identify_layout({v5 ? std::vector<int>{1, n, 5 + nc} : std::vector<int>{1, 4 + nc, n}},
-                                YoloLayout::kAuto, nc, &l, &error)) << error;
+                                v5 ? YoloLayout::kV5 : YoloLayout::kAuto, nc, 64, 64, &l, &error)) << error;
     DecodeParams p;
     const std::vector<Candidate> all = decode_candidates(out.data(), l, p);
     ASSERT_EQ(all.size(), v5 ? 5u : 4u) << "above 0.25: 0, 1, 2, 4 (and 5)";
@@ -178,7 +178,7 @@ TEST(YoloMasks, InstanceImageFollowsPrototypesBoxesAndScores) {
     }
   OutputLayout l;
   std::string error;
-  ASSERT_TRUE(identify_layout({{1, 4 + nc + nm, n}, {1, nm, ph, pw}}, YoloLayout::kAuto, nc, &l, &error)) << error;
+  ASSERT_TRUE(identify_layout({{1, 4 + nc + nm, n}, {1, nm, ph, pw}}, YoloLayout::kAuto, nc, 64, 64, &l, &error)) << error;
   DecodeParams p;
   const std::vector<Candidate> kept = non_max_suppression(decode_candidates(out.data(), l, p), p);
   ASSERT_EQ(kept.size(), 3u);

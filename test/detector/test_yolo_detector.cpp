@@ -47,8 +47,9 @@ class YoloDetectorTest : public ::testing::Test {
     return p;
   }
   // Builds a model of `layout` (v5 rows or v8 columns) over scene(), with prototypes when seg.
-  bool build(const std::string& name, bool v5, bool seg, int n = 12) {
-    const int nc = 3, nm = seg ? 2 : 0;
+  // YOLOv5 has 3 anchors x 84 grid points at 64x64, the v8 layout any number of candidates.
+  bool build(const std::string& name, bool v5, bool seg) {
+    const int nc = 3, nm = seg ? 2 : 0, n = v5 ? 252 : 12;
     std::vector<test::ModelOutput> outs;
     const std::vector<float> det = make_output(scene(), n, nc, nm, v5);
     outs.push_back({v5 ? std::vector<int>{1, n, 5 + nc + nm} : std::vector<int>{1, 4 + nc + nm, n}, det});

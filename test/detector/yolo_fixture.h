@@ -23,15 +23,16 @@ struct RawCandidate {
   std::vector<float> mask_coeffs;
 };
 
-// The detection output of `candidates` (padded with low-score ones to `n`) in a layout: v5 rows
-// [n, 5 + nc + nm] or v8 columns [4 + nc + nm, n]. Values row-major.
+// The detection output of `candidates` (padded with low-score ones to `n`, spread over a 64x64
+// input as a trained model's background candidates are, so that check_output takes them for boxes)
+// in a layout: v5 rows [n, 5 + nc + nm] or v8 columns [4 + nc + nm, n]. Values row-major.
 inline std::vector<float> make_output(const std::vector<RawCandidate>& candidates, int n, int nc, int nm, bool v5) {
   const int per = (v5 ? 5 : 4) + nc + nm;
   std::vector<float> out(static_cast<size_t>(per) * n, 0.f);
   for (int j = 0; j < n; ++j) {
     RawCandidate c = j < static_cast<int>(candidates.size())
                          ? candidates[j]
-                         : RawCandidate{5.f + j, 5.f + j, 4.f, 4.f, j % nc, 0.01f, 0.02f, {}};
+                         : RawCandidate{4.f + (j * 13) % 56, 4.f + (j * 23) % 56, 4.f, 4.f, j % nc, 0.01f, 0.02f, {}};
     std::vector<float> v(per, 0.f);
     v[0] = c.cx, v[1] = c.cy, v[2] = c.w, v[3] = c.h;
     const int first = v5 ? 5 : 4;

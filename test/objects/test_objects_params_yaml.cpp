@@ -59,7 +59,10 @@ TEST(ObjectParamsYaml, RoundTripOfChangedValues) {
   p.association.require_same_class = true;
   p.merge.enabled = false;
   p.merge.max_distance = 0.123456789;
-  p.lifecycle.confirm_observations = 5;
+  p.lifecycle.existence.candidate_max_age_keyframes = 5;
+  p.lifecycle.existence.recall = 0.35;
+  p.lifecycle.existence.recall_by_class = {{"refrigerator", 0.3}, {"dining table", 0.25}};
+  p.labels.rename_margin = 1.5;
   p.lifecycle.box_init.min_baseline_ratio = 0.07;
   p.lifecycle.depth_init.high_quantile = 0.95;
   p.refinement.max_iterations = 7;
@@ -79,6 +82,10 @@ TEST(ObjectParamsYaml, RoundTripOfChangedValues) {
   EXPECT_EQ(back->merge.max_distance, 0.123456789);
   EXPECT_EQ(back->lifecycle.box_init.min_baseline_ratio, 0.07);
   EXPECT_EQ(back->refinement.max_iterations, 7);
+  EXPECT_EQ(back->lifecycle.existence.candidate_max_age_keyframes, 5);
+  EXPECT_EQ(back->lifecycle.existence.recall, 0.35);
+  EXPECT_EQ(back->lifecycle.existence.recall_by_class, p.lifecycle.existence.recall_by_class);
+  EXPECT_EQ(back->labels.rename_margin, 1.5);
   EXPECT_FALSE(back->refine);
 }
 
@@ -95,14 +102,21 @@ TEST(ObjectParamsYaml, StrictErrorsNameTheKeyAndPosition) {
   EXPECT_NE(error.find("objects.refine"), std::string::npos) << error;
   EXPECT_FALSE(parse_object_params("objects:\n  merge: {enabled: true, enabled: false}\n", "f.yaml", &error));
   EXPECT_NE(error.find("twice"), std::string::npos) << error;
-  EXPECT_FALSE(parse_object_params("objects:\n  lifecycle:\n    confirm_observations: 2.5\n", "f.yaml", &error));
+  EXPECT_FALSE(parse_object_params("objects:\n  lifecycle:\n    existence: {candidate_max_age_keyframes: 2.5}\n",
+                                   "f.yaml", &error));
   EXPECT_NE(error.find("integer"), std::string::npos) << error;
   EXPECT_FALSE(parse_object_params("tracker:\n  use_dense: true\n", "f.yaml", &error));
   EXPECT_NE(error.find("unknown key 'tracker'"), std::string::npos) << error;
   EXPECT_FALSE(parse_object_params("objects: [1, 2\n", "f.yaml", &error));
   EXPECT_FALSE(load_object_params("/nonexistent/objects.yaml", &error));
   EXPECT_NE(error.find("/nonexistent/objects.yaml"), std::string::npos);
+  EXPECT_FALSE(parse_object_params("objects:\n  lifecycle:\n    existence: {recall_by_class: 'tv 0.3'}\n",
+                                   "f.yaml", &error));
+  EXPECT_NE(error.find("objects.lifecycle.existence.recall_by_class"), std::string::npos) << error;
   // Cross-field checks.
+  EXPECT_FALSE(parse_object_params("objects:\n  lifecycle:\n    existence: {confirm_probability: 0.05}\n",
+                                   "f.yaml", &error));
+  EXPECT_NE(error.find("remove_probability must be below confirm_probability"), std::string::npos) << error;
   EXPECT_FALSE(parse_object_params("objects:\n  lifecycle:\n    depth_init: {min_depth: 5, max_depth: 1}\n",
                                    "f.yaml", &error));
   // A partial file keeps the other defaults; the `base` it is read over counts.

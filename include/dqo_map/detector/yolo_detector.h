@@ -3,7 +3,9 @@
 // -seg models, the instance masks. Everything that can be wrong with a model shows at create():
 // a missing file, a file that is not ONNX, a layer OpenCV lacks (YOLOv10's NMS-free TopK), an
 // input size the model does not take, an output layout that matches no export, a class-names file
-// of the wrong length, classes to keep or ignore that it does not name. OpenCV stays in the .cpp.
+// of the wrong length, classes to keep or ignore that it does not name, and an output that is not
+// boxes when read in the layout chosen (check_output on a first inference of a grey image: NaN,
+// scores outside [0, 1], centres that do not cover the input). OpenCV stays in the .cpp.
 // Not thread-safe (one network): one caller at a time.
 
 #include <memory>
@@ -13,6 +15,7 @@
 #include "dqo_map/common/dataset.h"
 #include "dqo_map/common/image.h"
 #include "dqo_map/detector/yolo_decode.h"
+#include "dqo_map/detector/yolo_input.h"
 #include "dqo_map/detector/yolo_layout.h"
 
 namespace dqo::detector {
@@ -22,6 +25,7 @@ struct YoloParams {
   std::string classes;  // class-names file (class_names.h)
   int input_width = 640, input_height = 640;  // the size the model was exported for
   YoloLayout layout = YoloLayout::kAuto;
+  InputConvention input;  // channel order, scale, letterbox placement; kAuto: the layout's (yolo_input.h)
   float confidence = 0.25f;
   float nms_iou = 0.45f;
   int max_detections = 100;
@@ -49,6 +53,7 @@ class YoloDetector {
   YoloDetections detect(const ImageRgb8& rgb);
 
   const OutputLayout& layout() const;
+  const InputConvention& input_convention() const;  // resolved
   const std::vector<std::string>& class_names() const;
   bool segments() const { return layout().proto_output >= 0; }
   const YoloParams& params() const;

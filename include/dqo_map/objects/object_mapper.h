@@ -45,6 +45,8 @@ class ObjectMapper {
   // nullptr for an unknown (or merged / removed) ID.
   const MapObject* find(ObjectId id) const;
   ObjectId next_id() const;
+  // Class ID -> name, as the detections named them (for top_classes()).
+  const std::map<int, std::string>& class_names() const;
   const ObjectMapperParams& params() const;
 
   // Persistence (DESIGN.md: IDs never reused across restarts): the objects (quadric, class votes,

@@ -2,6 +2,7 @@
 // Parameters of the object stage, one struct per step (METHOD.md §2–3), gathered in
 // ObjectMapperParams. Defaults follow METHOD.md; departures are commented with the reason.
 // config/objects.yaml lists every field (params_yaml.h loads it strictly).
+#include <map>
 #include <string>
 #include "dqo_map/geometry/quadric_distance.h"
 #include "dqo_map/geometry/quadric_init.h"
@@ -64,18 +65,62 @@ struct MergeParams {
   // min_similarity 0.2; BENCHMARKS.md).
   double min_overlap = 0.7;
   double max_distance = 0.25;          // d: the piece's centre within the whole grown by d (object_merge.h)
+  // "Of one class" (METHOD.md) read through the class histograms: the same mode, or each one's mode
+  // holds at least this share of the other's votes (a real detector's look-alike classes for one
+  // object: a cabinet's pieces voted refrigerator and tv). 1.01: the modes must be equal.
+  double min_class_share = 0.2;
 };
 
-// Object lifecycle (DESIGN.md): candidates, confirmation, removal.
+// The object's class from its vote (object_types.h: labels as a histogram).
+struct LabelParams {
+  // The class changes only when another class has more than this times the current one's votes
+  // (then a kRenamed event): look-alike classes with about equal votes do not flip the name.
+  double rename_margin = 1.25;
+  int top_classes = 3;                 // classes (and shares) reported per object
+};
+
+// Whether an object exists, as a belief updated by evidence (DESIGN.md association_node): log-odds
+// l = log(p / (1 − p)), per keyframe where the object should be visible (in view, unoccluded,
+// wholly inside the image):
+//   detected        l += log(recall / false_alarm_rate)
+//   missed          l += w · log((1 − recall) / (1 − false_alarm_rate)), with w = supported_miss_weight
+//                   where the keyframe's depth shows a surface inside the projected ellipsoid where
+//                   the object should be (a detector's miss of something that is there), 1 otherwise
+//   depth sees through the ellipsoid (free space where the object is claimed): also + free_space
+//   occluded (depth nearer than the object's front) or cut by the border: no change
+// A real detector misses objects most of the time (recall 30–70 % on small, occluded or sideways
+// objects and on classes outside its vocabulary), so a miss of an object it rarely sees costs
+// little, a detection much: an object seen in 17 of 58 views is confirmed and stays, a box seen
+// once is not. The miss counters this replaces removed such objects (0 objects on real data).
+struct ExistenceParams {
+  double prior = 0.1;               // P(exists) of a new candidate before its first detection
+  double recall = 0.5;              // P(detected | exists, should be seen): the detector's recall
+  // Per class name, overriding `recall`: "refrigerator: 0.3, tv: 0.6" (the object's current class).
+  std::map<std::string, double> recall_by_class;
+  double false_alarm_rate = 0.05;   // P(a detection associates here | no object here)
+  double supported_miss_weight = 0.25;
+  double free_space = -1.0;         // log-odds per keyframe whose depth sees through the ellipsoid
+  double min_surface_fraction = 0.2;  // of the valid depth samples, to count as a surface there
+  double confirm_probability = 0.95;  // a candidate reaching this is confirmed
+  double remove_probability = 0.1;   // an object (candidate or confirmed) falling to this is removed
+  double max_log_odds = 8.0;        // belief saturates here: an object that left can still go
+  // A candidate not confirmed within this many keyframes (where it took no detection) is removed:
+  // clutter on a real surface costs little per miss and would otherwise stay a candidate forever.
+  int candidate_max_age_keyframes = 30;
+
+  double recall_of(const std::string& class_name) const;
+  double log_odds_detected(const std::string& class_name) const;
+  double log_odds_missed(const std::string& class_name) const;
+};
+
+// "a: 0.3, b: 0.6" <-> map; false (and *error) for a malformed list or a value outside (0, 1).
+bool parse_recall_by_class(const std::string& text, std::map<std::string, double>* out,
+                           std::string* error = nullptr);
+std::string recall_by_class_to_string(const std::map<std::string, double>& recall);
+
+// Object lifecycle (DESIGN.md): candidates, confirmation and removal by ExistenceParams.
 struct LifecycleParams {
-  int confirm_observations = 3;        // a candidate with this many observations is confirmed
-  int candidate_max_missed = 3;        // a candidate missed this often where visible: REMOVED
-  int candidate_max_age_keyframes = 30;// a candidate not confirmed within this many keyframes: REMOVED
-  // A confirmed object missed this often in a row where it should be seen: REMOVED (0 = never).
-  // 8: early objects placed wrongly (a box-plane fit from a short baseline, a depth ellipsoid on
-  // an occluder) otherwise stay as spurious objects next to the right one (room: 4 -> 1 spurious;
-  // with a detector's 10 % misses, 8 misses in a row of a right object is rare).
-  int remove_after_missed = 8;
+  ExistenceParams existence;
   int min_box_views = 3;               // box-plane initialisation needs this many views
   // Depth check of box-plane quadrics (not in METHOD.md; src/objects/depth_init.h): where the
   // observations have depth, a box-plane quadric whose centre lies further than this from where the
@@ -114,6 +159,7 @@ struct ObjectMapperParams {
   LifecycleParams lifecycle;
   RefinementParams refinement;
   BoxFitParams box_fit;
+  LabelParams labels;
   bool refine = true;                  // IoU refinement of the objects seen in each keyframe
 };
 

@@ -53,7 +53,10 @@ struct MapObject {
   // (box_from_quadric) until there is one. Object lists report this.
   bool has_box = false;
   OrientedBox box;
-  int class_id = 0;             // winner of the class vote
+  // Labels as a histogram: association is by geometry, so look-alike classes of one object (a
+  // cabinet called refrigerator, oven, microwave, tv in turn) build one object; its class is the
+  // mode of the score-weighted votes (with hysteresis: LabelParams::rename_margin).
+  int class_id = 0;             // the mode of the class vote
   std::string class_name;
   double confidence = 0.0;      // share of the (score-weighted) class vote won by class_id
   std::map<int, double> class_votes;           // class ID -> summed detection score
@@ -61,16 +64,37 @@ struct MapObject {
   // Every observation ever added (also those before a restart, whose keyframes are gone, and
   // those of objects merged into this one); observations.size() counts this run's only.
   int observation_count = 0;
-  int missed = 0;               // consecutive keyframes where it should be seen and was not detected
+  // Belief that the object exists, as log-odds (ExistenceParams): raised by detections, lowered
+  // by misses where it should be seen, unless the depth shows it is there.
+  double existence = 0.0;
+  int missed = 0;               // keyframes since the last detection where it should have been seen
+                                // (reporting only: removal goes by `existence`)
   KeyFrameId first_keyframe = 0;
   KeyFrameId last_keyframe = 0; // last keyframe with an observation
 };
 
+// The classes of an object's vote, most votes first (ties: lower class ID), with their shares of
+// the total; at most `max` of them.
+struct ClassShare {
+  int class_id = 0;
+  std::string class_name;
+  double share = 0.0;
+};
+std::vector<ClassShare> top_classes(const MapObject& object, int max,
+                                    const std::map<int, std::string>& names = {});
+
+// P(exists) from the object's log-odds.
+double existence_probability(const MapObject& object);
+
 struct ObjectEvent {
-  enum class Type { kCreated, kMerged, kRemoved };
+  enum class Type { kCreated, kMerged, kRemoved, kRenamed };
+  ObjectEvent() = default;
+  ObjectEvent(Type type_, ObjectId id_, ObjectId into_id_ = 0) : type(type_), id(id_), into_id(into_id_) {}
   Type type = Type::kCreated;
   ObjectId id = 0;
   ObjectId into_id = 0;         // kMerged only: id was merged into into_id
+  int class_id = 0;             // kRenamed only: the object's new class (its mode changed)
+  std::string class_name;
 };
 
 // Why a detection of a keyframe did not become (part of) an object.
@@ -106,6 +130,7 @@ struct KeyFrameAssociation {
   double refinement_ms = 0.0;                  // IoU refinement of the objects seen
   double box_fit_ms = 0.0;                     // box fits of the objects seen
   int refined_objects = 0;
+  int free_space_misses = 0;                   // visible objects whose depth saw through them
   // One entry per refinement run in this keyframe (ok or not), for per-object timings.
   struct Refinement {
     ObjectId id = 0;
