@@ -113,27 +113,15 @@ std::string object_table(const std::vector<objects::MapObject>& objects,
                          const std::map<int, std::string>& class_names, int top) {
   std::string out;
   char line[512];
-  std::snprintf(line, sizeof(line), "%4s  %-14s %-40s %-24s %-20s %5s\n", "id", "class",
-                "top classes (share of the vote)", "centre x y z (m)", "box size (m)", "obs");
+  std::snprintf(line, sizeof(line), "%4s  %-14s %-40s %-24s %-17s %5s %6s\n", "id", "class",
+                "top classes (share of the vote)", "centre x y z (m)", "box size (m)", "obs", "P(ex)");
   out += line;
   for (const objects::MapObject& o : objects) {
-    std::vector<std::pair<double, int>> votes;
-    double total = 0.0;
-    for (const auto& [class_id, weight] : o.class_votes) {
-      votes.emplace_back(weight, class_id);
-      total += weight;
-    }
-    std::stable_sort(votes.begin(), votes.end(),
-                     [](const auto& a, const auto& b) { return a.first > b.first; });
     std::string shares;
-    for (int k = 0; k < top && k < static_cast<int>(votes.size()) && total > 0.0; ++k) {
-      const auto it = class_names.find(votes[k].second);
-      const std::string name = it != class_names.end() ? it->second
-                               : votes[k].second == o.class_id ? o.class_name
-                                                               : "class " + std::to_string(votes[k].second);
+    for (const objects::ClassShare& c : objects::top_classes(o, top, class_names)) {
+      const std::string name = c.class_name.empty() ? "class " + std::to_string(c.class_id) : c.class_name;
       char share[96];
-      std::snprintf(share, sizeof(share), "%s%s %.2f", shares.empty() ? "" : ", ", name.c_str(),
-                    votes[k].first / total);
+      std::snprintf(share, sizeof(share), "%s%s %.2f", shares.empty() ? "" : ", ", name.c_str(), c.share);
       shares += share;
     }
     if (shares.empty()) shares = "-";
@@ -143,9 +131,9 @@ std::string object_table(const std::vector<objects::MapObject>& objects,
     std::snprintf(centre, sizeof(centre), "%.3f %.3f %.3f", box.centre.x(), box.centre.y(), box.centre.z());
     std::snprintf(size, sizeof(size), "%.2f %.2f %.2f", 2 * box.half_extents.x(),
                   2 * box.half_extents.y(), 2 * box.half_extents.z());
-    std::snprintf(line, sizeof(line), "%4llu  %-14s %-40s %-24s %-20s %5d\n",
+    std::snprintf(line, sizeof(line), "%4llu  %-14s %-40s %-24s %-17s %5d %6.3f\n",
                   static_cast<unsigned long long>(o.id), o.class_name.c_str(), shares.c_str(), centre,
-                  size, o.observation_count);
+                  size, o.observation_count, objects::existence_probability(o));
     out += line;
   }
   return out;

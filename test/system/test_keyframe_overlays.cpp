@@ -208,7 +208,7 @@ TEST(ObjectTable, ClassSharesCentreBoxAndObservations) {
   EXPECT_NE(table.find("cup 0.75, bowl 0.25"), std::string::npos) << table;
   EXPECT_NE(table.find("0.500 -0.250 0.750"), std::string::npos) << table;
   EXPECT_NE(table.find("0.10 0.08 0.12"), std::string::npos) << table;
-  EXPECT_NE(table.find(" 12\n"), std::string::npos) << table;
+  EXPECT_NE(table.find(" 12  0.500\n"), std::string::npos) << table;  // observations, P(exists) at log-odds 0
 }
 
 // The offline pipeline on `tiny` writes one overlay per keyframe, named by keyframe ID, of the

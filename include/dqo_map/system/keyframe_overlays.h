@@ -39,7 +39,8 @@ ObjectStageObserver overlay_writer(const std::string& folder, std::shared_ptr<Ov
 ObjectStageObserver class_name_collector(std::shared_ptr<std::map<int, std::string>> names);
 
 // The objects as a table (one row each, by ID): id, class, the `top` classes of its vote with
-// their shares, centre (m), box size (full extents along its axes, m), observations.
+// their shares (objects::top_classes), centre (m), box size (full extents along its axes, m),
+// observations, P(exists).
 std::string object_table(const std::vector<objects::MapObject>& objects,
                          const std::map<int, std::string>& class_names, int top = 3);
 

@@ -282,7 +282,12 @@ ImageRgb8 draw_object_overlay(const ImageRgb8& rgb, const PinholeCamera& camera,
       cv::Mat backing = image(roi);
       backing.convertTo(backing, -1, 0.45);
     }
-    draw_text(&image, l.text, pixel({r.x_min + 2.0, r.y_max - l.baseline}), layout.font_scale, scalar(l.colour));
+    // The text a third of the way to white: dark hues (blue, violet) stay readable on the backing.
+    const Rgb& c = l.colour;
+    const auto lighter = [](uint8_t v) { return static_cast<uint8_t>(v + (255 - v) / 3); };
+    const Rgb text_colour = {lighter(c[0]), lighter(c[1]), lighter(c[2])};
+    draw_text(&image, l.text, pixel({r.x_min + 2.0, r.y_max - l.baseline}), layout.font_scale,
+              scalar(text_colour));
   }
   return out;
 }
