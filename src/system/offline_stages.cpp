@@ -109,7 +109,8 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
                                                         LabelSource labels,
                                                         const DatasetInfo& info,
                                                         OfflineStages* stages,
-                                                        FrameDetector detector) {
+                                                        FrameDetector detector,
+                                                        ObjectStageObserver observer) {
   if (detections == DetectionSource::kDetector && !detector) {
     throw std::invalid_argument("add_object_stage: DetectionSource::kDetector needs a detector");
   }
@@ -118,7 +119,7 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
   MaskDetectionParams mask_params;
   mask_params.default_class = {0, "object"};
   for (const GtObject& o : info.objects) mask_params.classes[o.id] = {o.class_id, o.class_name};
-  stages->objects = [mapper, detections, labels, mask_params, detector](const mapping::MappingKeyframe& kf,
+  stages->objects = [mapper, detections, labels, mask_params, detector, observer](const mapping::MappingKeyframe& kf,
                                                    const Frame& frame) {
     const auto t0 = std::chrono::steady_clock::now();
     objects::ObjectKeyFrame okf;
@@ -162,7 +163,8 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
       if (e.type != objects::ObjectEvent::Type::kRenamed) out.events.push_back(to_mapping_event(e));
     }
     out.objects = to_object_records(mapper->objects());
-    out.ms = ms_since(t0);
+    out.ms = ms_since(t0);  // the stage's own time: an observer's (drawing, writing) is not counted
+    if (observer) observer(ObjectStageView{kf, okf.detections, r, mapper->objects(true)});
     return out;
   };
   return mapper;

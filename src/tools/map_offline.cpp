@@ -8,6 +8,8 @@
 //   object_<id>_mesh.ply           each object's TSDF mesh
 //   timings.json                   per stage, per frame and total; frames per second; peak memory
 //   metrics.json                   where ground truth exists: ATE, objects, reconstruction
+//   object_table.txt               the objects for a person: class shares, centre, box, observations
+//   overlays/keyframe_<id>.png     with --overlays: each keyframe's detections and objects drawn
 // The reduced build (no OpenCV, Ceres, Open3D: the GPU machine) takes scene YAMLs only, with
 // ground-truth poses and instance labels, and writes neither meshes nor metrics.
 
@@ -18,6 +20,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -39,6 +42,7 @@
 #include "dqo_map/io/mesh_io.h"
 #include "dqo_map/io/trajectory_io.h"
 #include "dqo_map/objects/params_yaml.h"
+#include "dqo_map/system/keyframe_overlays.h"
 #include "dqo_map/system/object_export.h"
 #include "dqo_map/system/object_meshes.h"
 #include "dqo_map/system/offline_metrics.h"
@@ -59,7 +63,7 @@ constexpr char kUsage[] =
     "                       [--config mapping.yaml] [--tracking-config tracking.yaml]\n"
     "                       [--objects-config objects.yaml] [--max-gaussians N] [--threads T]\n"
     "                       [--no-noise] [--no-meshes] [--background-mesh] [--map FILE] [--preload]\n"
-    "                       [--one-thread] [--quiet] [--detector-profile kind|real]\n"
+    "                       [--one-thread] [--overlays DIR] [--quiet] [--detector-profile kind|real]\n"
     "  INPUT              a dataset folder (own format, TUM RGB-D, Replica) or a scene YAML\n"
     "                     (rendered in memory, with its sensor noise unless --no-noise)\n"
     "  --detector-profile P  scene YAMLs: the simulated detector behaves as profile P whatever\n"
@@ -87,6 +91,9 @@ constexpr char kUsage[] =
     "                     system runs it; the same map either way)\n"
     "  --no-meshes        skip the per-object meshes (and the reconstruction metrics)\n"
     "  --background-mesh  also mesh the background (background_mesh.ply, 1 cm voxels)\n"
+    "  --overlays DIR     one PNG per keyframe (keyframe_<id>.png; DIR relative to --out): the\n"
+    "                     image with its detections (\"class score\") and the objects' projected\n"
+    "                     ellipses (\"#ID class\"; candidates thin, dashed, \"?\") as they stood after it\n"
     "  --map FILE         no mapping: mesh and evaluate the map of a finished run (map.dqomap)\n";
 
 #ifdef DQO_WITH_DETECTOR
@@ -110,6 +117,7 @@ int fail(const std::string& message) {
 
 struct Options {
   std::string input, out, poses, labels, backend, config, tracking_config, objects_config, map;
+  std::string overlays;  // empty: none
   double scale = 1.0;
   int frames = -1, every = 1, max_gaussians = -1, threads = 0;
   bool noise = true, meshes = true, background_mesh = false, quiet = false, preload = false;
@@ -194,6 +202,8 @@ int parse_options(int argc, char** argv, Options* out) {
         o.backend = v;
       } else if (a == "--map") {
         o.map = v;
+      } else if (a == "--overlays") {
+        o.overlays = v;
       } else if (a == "--config") {
         o.config = v;
       } else if (a == "--tracking-config") {
@@ -407,18 +417,38 @@ int main(int argc, char** argv) {
     };
   }
 #endif
+  // Watching the object stage: the class names its detections use (for the object table) and,
+  // with --overlays, each keyframe drawn.
+  auto class_names = std::make_shared<std::map<int, std::string>>();
+  auto overlay_log = std::make_shared<dqo::system::OverlayLog>();
+  fs::path overlay_dir;
+  dqo::system::ObjectStageObserver write_overlay;
+  if (!o.overlays.empty()) {
+    if (labels == "none") return fail("--overlays draws the objects: not with --labels none");
+    if (!o.map.empty()) return fail("--overlays draws a run's keyframes: not with --map");
+    overlay_dir = out / o.overlays;
+    write_overlay = dqo::system::overlay_writer(overlay_dir.string(), overlay_log, &error);
+    if (!write_overlay) return fail(error);
+  }
+  const dqo::system::ObjectStageObserver collect_names = dqo::system::class_name_collector(class_names);
+  const dqo::system::ObjectStageObserver observe = [collect_names, write_overlay](
+                                                       const dqo::system::ObjectStageView& view) {
+    collect_names(view);
+    if (write_overlay) write_overlay(view);
+  };
   std::shared_ptr<dqo::objects::ObjectMapper> object_mapper;
   std::string objects_from = "nowhere";
   if (labels != "none") {
     object_mapper = dqo::system::add_object_stage(
         object_params, detection_source,
         labels == "masks" ? dqo::system::LabelSource::kMasks : dqo::system::LabelSource::kQuadrics,
-        info, &stages, detect);
+        info, &stages, detect, observe);
     objects_from = detection_source == dqo::system::DetectionSource::kDetector ? "the model's detections"
                    : detection_source == dqo::system::DetectionSource::kDataset ? "detections"
                                                                                  : "instance masks";
   }
 #else
+  if (!o.overlays.empty()) return fail("--overlays needs the full build (OpenCV: io/ and the object stage)");
   if (poses != "gt") return fail("this build maps with ground-truth poses only (--poses gt)");
   if (labels == "quadrics") return fail("this build labels pixels from instance masks only (--labels masks)");
   const std::string objects_from = labels == "none" ? "nowhere" : "ground truth";
@@ -485,6 +515,21 @@ int main(int argc, char** argv) {
   std::vector<dqo::ObjectListEntry> entries;
   for (const auto& r : objects) entries.push_back(dqo::make_object_list_entry(r.id, r.class_id, r.box));
   if (!dqo::write_object_list((out / "objects.txt").string(), entries, &error)) return fail(error);
+#ifdef DQO_FULL_PIPELINE
+  if (object_mapper && !loaded_map) {
+    std::string text = dqo::system::object_table(object_mapper->objects(), *class_names);
+    std::string candidates;
+    for (const auto& c : object_mapper->objects(true)) {
+      if (c.state != dqo::objects::ObjectState::kConfirmed) candidates += " #" + std::to_string(c.id);
+    }
+    if (!candidates.empty()) text += "# candidates never confirmed:" + candidates + "\n";
+    if (!dqo::write_file_atomically((out / "object_table.txt").string(), text, &error)) return fail(error);
+  }
+  if (!o.overlays.empty()) {
+    if (!overlay_log->error.empty()) std::fprintf(stderr, "dqo_map_offline: overlays: %s\n", overlay_log->error.c_str());
+    std::printf("overlays: %d keyframe images in %s\n", overlay_log->written, fs::absolute(overlay_dir).c_str());
+  }
+#endif
 
   // The map and the Gaussians.
   if (!dqo::mapping::save_map_file((out / "map.dqomap").string(), mapper->snapshot(next_id), &error)) {

@@ -1,9 +1,11 @@
 #pragma once
-// The association node's object_overlay: a keyframe's image with its detections and every object's
-// projected conic drawn on it, so that a user sees at a glance whether association works (each
-// detection box in the colour of the object it became, its class and score; each object's ellipse
-// and ID in its own colour). Drawn with OpenCV (library dqo_object_overlay); the maths is
-// geometry/'s (conic_ellipse).
+// The association node's object_overlay (and dqo_map_offline --overlays): a keyframe's image with
+// its detections and every object's projected conic drawn on it, so that a user sees at a glance
+// whether association works: each detection box in the colour of the object it became with
+// "class score", each object's ellipse with "#ID class" in its own colour; confirmed objects
+// solid, candidates thin and dashed (the lifecycle). Labels are placed so that none covers another
+// (place_labels). Drawn with OpenCV (library dqo_object_overlay); the conic maths is geometry/'s
+// (conic_ellipse).
 #include <array>
 #include <cstdint>
 #include <string>
@@ -11,6 +13,7 @@
 
 #include "dqo_map/common/image.h"
 #include "dqo_map/geometry/box2d.h"
+#include "dqo_map/geometry/conic.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/geometry/se3.h"
 #include "dqo_map/objects/object_types.h"
@@ -30,10 +33,72 @@ using Rgb = std::array<uint8_t, 3>;
 Rgb overlay_colour(ObjectId id);
 constexpr Rgb kUnmatchedColour = {255, 255, 255};
 
+// ---- Label placement -------------------------------------------------------------------------
+
+// A label to place next to what it names: a box (a detection, an ellipse's extent) or a point (an
+// ellipse's centre), and the size of its text with padding.
+struct LabelRequest {
+  enum class Anchor { kBox, kPoint };
+  Anchor kind = Anchor::kBox;
+  Box2d anchor;           // the box; for kPoint a small box around the point (its mark)
+  double width = 0.0;     // pixels
+  double height = 0.0;
+};
+
+struct PlacedLabel {
+  Box2d rect;             // where the label goes; empty (not valid()) when it fits nowhere
+  bool adjacent = false;  // at one of its anchor's own positions (false: moved away; draw a leader)
+};
+
+// Greedy placement in the order given (put the most important labels first). Each label takes the
+// first of its anchor's positions that overlaps no label placed before: a box's label above it,
+// below it, inside its top edge, inside its bottom edge, right of it, left of it; a point's right
+// of it, left, above, below; those inside the image as they are first, then those moved into it
+// (a box at the top edge: below it). When all are taken, the free position nearest
+// the first one within `max_shift` pixels (a grid search); when there is none, the label is left
+// out (rect empty). Placed rectangles lie inside [0, width] x [0, height] and have disjoint
+// interiors. A label larger than the image is left out.
+std::vector<PlacedLabel> place_labels(const std::vector<LabelRequest>& labels, int image_width,
+                                      int image_height, double max_shift = 120.0);
+
+// ---- The overlay -----------------------------------------------------------------------------
+
+// What draw_object_overlay draws, computed without drawing (tests check it; the drawing uses it).
+struct OverlayLayout {
+  struct Ellipse {
+    ObjectId id = 0;
+    bool confirmed = true;  // false: a candidate (thin, dashed)
+    Ellipse2d ellipse;
+    bool centre_in_image = false;
+  };
+  struct Box {
+    Box2d box;
+    Rgb colour = kUnmatchedColour;
+    bool solid = true;      // false: its object is a candidate
+  };
+  struct Label {
+    std::string text;
+    Rgb colour = kUnmatchedColour;
+    PlacedLabel placed;
+    Box2d anchor;           // what it names (for the leader line of a moved label)
+    double baseline = 0.0;  // pixels from the rect's bottom to the text's baseline
+  };
+  std::vector<Ellipse> ellipses;
+  std::vector<Box> boxes;
+  std::vector<Label> labels;  // object labels ("#ID class") first, then detections' ("class score")
+  double font_scale = 0.45;
+};
+
+// The layout of the overlay of `objects` (confirmed and candidates; those without a quadric or not
+// wholly in front of the camera are skipped) and `detections` on an image of `camera`'s size.
+OverlayLayout layout_object_overlay(const PinholeCamera& camera, const SE3& T_wc,
+                                    const std::vector<OverlayDetection>& detections,
+                                    const std::vector<MapObject>& objects);
+
 // A copy of `rgb` (3 channels, the size of `camera`) with, in this order, the objects' ellipses
-// (those wholly in front of the camera), the detection boxes (2 px wide, their label above them)
-// and each ellipse's centre (a filled dot of 3 px radius) and ID. An image of another size or
-// channel count is returned unchanged.
+// (confirmed 2 px solid, candidates 1 px dashed), the detection boxes (2 px; 1 px for a candidate's
+// detection), each ellipse's centre (a filled dot) and the labels of layout_object_overlay. An
+// image of another size or channel count is returned unchanged.
 ImageRgb8 draw_object_overlay(const ImageRgb8& rgb, const PinholeCamera& camera, const SE3& T_wc,
                               const std::vector<OverlayDetection>& detections,
                               const std::vector<MapObject>& objects);

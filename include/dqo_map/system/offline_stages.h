@@ -50,16 +50,27 @@ struct FrameDetections {
 };
 using FrameDetector = std::function<FrameDetections(const Frame&)>;
 
+// What the object stage saw and did on one keyframe, handed to an observer right after it (while
+// the keyframe is being mapped, before the next): dqo_map_offline --overlays draws it.
+struct ObjectStageView {
+  const mapping::MappingKeyframe& keyframe;         // rectified images, pose
+  const std::vector<Detection2d>& detections;       // the stage's input (dataset, masks, detector)
+  const objects::KeyFrameAssociation& association;  // filtered detections and their objects
+  const std::vector<objects::MapObject>& objects;   // confirmed and candidates, after this keyframe
+};
+using ObjectStageObserver = std::function<void(const ObjectStageView&)>;
+
 // The object stage (ObjectMapper) on each keyframe's detections. Fills stages.objects; returns the
 // mapper so that the caller can read its objects and next ID at the end. `detector` is required with
 // DetectionSource::kDetector; its instance image (if any) labels the pixels with LabelSource::kMasks,
-// never the dataset's ground-truth masks.
+// never the dataset's ground-truth masks. `observer` (optional) sees every keyframe's outcome.
 std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMapperParams& params,
                                                         DetectionSource detections,
                                                         LabelSource labels,
                                                         const DatasetInfo& info,
                                                         OfflineStages* stages,
-                                                        FrameDetector detector = {});
+                                                        FrameDetector detector = {},
+                                                        ObjectStageObserver observer = {});
 
 // The object stage's objects as mapping records.
 std::vector<mapping::ObjectRecord> to_object_records(const std::vector<objects::MapObject>& objects);
