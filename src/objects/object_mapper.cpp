@@ -64,6 +64,18 @@ OrientedBox upright_box(const OrientedBox& b) {
   return out;
 }
 
+// The trimmed extent of the points along a direction.
+double spread_along(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& origin,
+                    const Eigen::Vector3d& direction, double trim) {
+  std::vector<double> d;
+  d.reserve(points.size());
+  for (const Eigen::Vector3d& p : points) d.push_back((p - origin).dot(direction));
+  if (d.empty()) return 0.0;
+  std::sort(d.begin(), d.end());
+  const auto at = [&](double q) { return d[static_cast<size_t>(q * static_cast<double>(d.size() - 1) + 0.5)]; };
+  return at(1.0 - trim) - at(trim);
+}
+
 Eigen::Vector3d sorted(Eigen::Vector3d v) {
   std::sort(v.data(), v.data() + 3);
   return v;
@@ -136,9 +148,13 @@ struct ObjectMapper::Impl {
     surface_of(object, params.surface.max_views, &points, &cameras);
     if (static_cast<int>(points.size()) < params.surface.min_points) return true;
     const SupportEstimate support = find_support(points, object.quadric, params.surface);
-    if (!support.found) return true;
-    return 2 * static_cast<int>(object_points(points, object.quadric, support, params.surface).size()) >=
-           params.surface.min_points;
+    if (support.found) {
+      return 2 * static_cast<int>(object_points(points, object.quadric, support, params.surface).size()) >=
+             params.surface.min_points;
+    }
+    // No support under it: still not an object if everything inside it is one flat horizontal
+    // patch (a clutter box whose ellipsoid sank into the table it lies on).
+    return !flat_patch(object_points(points, object.quadric, SupportEstimate(), params.surface), params.surface);
   }
 
   std::optional<BoxObservation> view_of(const ObjectObservation& o) const {
@@ -181,6 +197,25 @@ struct ObjectMapper::Impl {
       const double boxes = depth_disagreement(r.quadric, evidence);
       if (boxes > params.lifecycle.max_depth_disagreement &&
           boxes > depth_disagreement(object->quadric, evidence)) {
+        return;
+      }
+    }
+    // Box planes from a short baseline can collapse an axis (a bottle as a disc 2 mm thick, kept
+    // only by min_axis_ratio): an axis under a tenth of the longest is refused where the object's
+    // own depth points (inside its current ellipsoid) spread four times wider along it. A thin
+    // object (a television, a picture) keeps its thin axis: its points are flat along it too.
+    const Eigen::Vector3d& axes = r.quadric.semi_axes();
+    int thin = 0;
+    for (int k = 1; k < 3; ++k) {
+      if (axes(k) < axes(thin)) thin = k;
+    }
+    if (object->has_quadric && axes(thin) < 0.1 * axes.maxCoeff()) {
+      std::vector<Eigen::Vector3d> points, cameras;
+      surface_of(*object, params.surface.max_views, &points, &cameras);
+      const std::vector<Eigen::Vector3d> own = object_points(points, object->quadric, SupportEstimate(), params.surface);
+      if (static_cast<int>(own.size()) >= params.surface.min_points &&
+          spread_along(own, r.quadric.centre(), r.quadric.rotation().col(thin), params.surface.trim_quantile) >
+              8.0 * axes(thin)) {
         return;
       }
     }

@@ -144,6 +144,15 @@ std::vector<Eigen::Vector3d> object_points(const std::vector<Eigen::Vector3d>& p
   return out;
 }
 
+bool flat_patch(const std::vector<Eigen::Vector3d>& points_w, const SurfaceParams& params) {
+  if (static_cast<int>(points_w.size()) < params.min_points) return false;
+  std::vector<double> z;
+  z.reserve(points_w.size());
+  for (const Eigen::Vector3d& p : points_w) z.push_back(p.z());
+  const double lo = quantile(z, params.trim_quantile), hi = quantile(z, 1.0 - params.trim_quantile);
+  return hi - lo <= 2.0 * params.support_band;
+}
+
 SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, const OrientedBox& detections_box,
                                  const std::vector<Eigen::Vector3d>& camera_centres_w,
                                  const SupportEstimate& support, const SurfaceParams& params) {

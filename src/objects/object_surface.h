@@ -32,9 +32,10 @@ struct SupportEstimate {
 };
 
 // The support under `q` among `points_w` (the boxes' points: the object and what surrounds it):
-// the densest 1 cm height band among the points within the ellipsoid's footprint (grown by
-// support_reach) and below its centre, if it holds at least min_support_share of them and is the
-// lowest dense band the object's own points reach down to (within support_max_gap).
+// the lowest 2 cm height band, from support_max_gap below the object's lowest points up to them,
+// holding at least min_support_points of the points around the object (within its footprint
+// grown by support_reach, below its centre, outside its ellipsoid grown by half: a plane that
+// extends beyond the object, not its own near-horizontal parts).
 SupportEstimate find_support(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,
                              const SurfaceParams& params);
 
@@ -42,6 +43,10 @@ SupportEstimate find_support(const std::vector<Eigen::Vector3d>& points_w, const
 // support was found, above the support's band.
 std::vector<Eigen::Vector3d> object_points(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,
                                            const SupportEstimate& support, const SurfaceParams& params);
+
+// At least min_points points, all but the trimmed quantiles within 2 × support_band in height: a
+// patch of a horizontal surface, not an object standing on one.
+bool flat_patch(const std::vector<Eigen::Vector3d>& points_w, const SurfaceParams& params);
 
 struct SurfaceBoxResult {
   bool ok = false;

@@ -154,6 +154,26 @@ TEST(ObjectSurface, BoxFromThePointsWhereCamerasLookedAndFromTheDetectionsElsewh
   EXPECT_NEAR(r.box.centre.z() - r.box.half_extents.z(), 0.75, 0.004);
 }
 
+// Recurring clutter on a table is a flat patch of it; a book lying on the table is not.
+TEST(ObjectSurface, AFlatPatchOfTheTableIsNoObject) {
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> n(0.0, 0.002);
+  std::vector<Eigen::Vector3d> patch;
+  for (double x = 0; x < 0.1; x += 0.005) {
+    for (double y = 0; y < 0.08; y += 0.005) patch.push_back(Eigen::Vector3d(x, y, 0.75 + n(rng)));
+  }
+  const SurfaceParams params;
+  EXPECT_TRUE(flat_patch(patch, params));
+  OrientedBox book;
+  book.centre = Eigen::Vector3d(0.05, 0.04, 0.77);
+  book.half_extents = Eigen::Vector3d(0.1, 0.07, 0.02);
+  const std::vector<Eigen::Vector3d> cams = ring(book.centre, 0.0, 2.0 * kPi, 6, 0.5);
+  std::vector<Eigen::Vector3d> with_book = scene_points(book, cams, 0.75, 0.002, rng);
+  EXPECT_FALSE(flat_patch(with_book, params));
+  patch.resize(static_cast<size_t>(params.min_points - 1));
+  EXPECT_FALSE(flat_patch(patch, params)) << "too few points say nothing";
+}
+
 // Views of an ellipsoid from a short arc with box noise: few views leave its tilt loosely held.
 std::vector<BoxObservation> arc_views(const DualQuadric& truth, int n, double arc, double sigma_px, std::mt19937_64& rng) {
   const PinholeCamera cam = test::test_camera(640, 480);
