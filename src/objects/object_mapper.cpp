@@ -139,6 +139,17 @@ struct ObjectMapper::Impl {
     }
   }
 
+  // Confirmation needs an ellipsoid where the observations' depth puts the object ("seen
+  // consistently in space"): a box-plane fit from an early short baseline (a laptop as a
+  // 4 m needle) waits for a better one. True where there is no depth evidence.
+  bool agrees_with_depth(const MapObject& object) const {
+    if (params.lifecycle.max_depth_disagreement <= 0.0) return true;
+    std::vector<DepthEvidence> evidence;
+    for (const ObjectObservation& o : object.observations) evidence.push_back(evidence_of(o));
+    const double d = depth_disagreement(object.quadric, evidence);
+    return !(d > params.lifecycle.max_depth_disagreement);
+  }
+
   // Whether the depth shows the object standing out of the surface it rests on (in a levelled
   // map): recurring clutter boxes on a table (a detector's "scissors" on a cable, a mark) have
   // nothing above the table's band, and are not confirmed. True where there is no such evidence.
@@ -459,7 +470,7 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     MapObject& o = objects.at(id);
     try_box_init(&o);
     if (o.state == ObjectState::kCandidate && o.has_quadric && o.existence >= confirm_log_odds &&
-        rises_from_support(o)) {
+        agrees_with_depth(o) && rises_from_support(o)) {
       o.state = ObjectState::kConfirmed;
     }
   }
