@@ -40,6 +40,7 @@ struct KeyframeRecord {
   // Depth samples inside each kept detection's box, camera frame (SurfaceParams): the objects'
   // own surface, moved with the keyframe when bundle adjustment corrects its pose.
   std::vector<std::pair<Box2d, std::vector<Eigen::Vector3f>>> box_points;
+  std::vector<std::pair<Box2d, double>> stand_out;  // stand_out_share of each kept detection
 };
 
 bool same_box(const Box2d& a, const Box2d& b) {
@@ -148,6 +149,23 @@ struct ObjectMapper::Impl {
     for (const ObjectObservation& o : object.observations) evidence.push_back(evidence_of(o));
     const double d = depth_disagreement(object.quadric, evidence);
     return !(d > params.lifecycle.max_depth_disagreement);
+  }
+
+  // Whether the depth in the object's detection boxes stands out of the surface around them (the
+  // median over the observations that can tell): a detector's clutter on a wall or a table does not.
+  bool stands_out(const MapObject& object) const {
+    if (!params.surface.enabled) return true;
+    std::vector<double> shares;
+    for (const ObjectObservation& o : object.observations) {
+      const auto it = keyframes.find(o.keyframe_id);
+      if (it == keyframes.end()) continue;
+      for (const auto& [box, share] : it->second.stand_out) {
+        if (same_box(box, o.box) && std::isfinite(share)) shares.push_back(share);
+      }
+    }
+    if (shares.empty()) return true;
+    std::nth_element(shares.begin(), shares.begin() + static_cast<long>(shares.size() / 2), shares.end());
+    return shares[shares.size() / 2] >= params.surface.min_stand_out;
   }
 
   // Whether the depth shows the object standing out of the surface it rests on (in a levelled
@@ -365,6 +383,8 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
   if (kf.depth.data != nullptr && params.surface.enabled) {
     for (const Detection2d& d : dets) {
       record.box_points.emplace_back(d.box, sample_box_points(d.box, kf.camera, kf.depth, params.surface));
+      record.stand_out.emplace_back(
+          d.box, stand_out_share(d.box, record.box_points.back().second, kf.camera, kf.depth, params.surface));
     }
   }
 
@@ -470,7 +490,7 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     MapObject& o = objects.at(id);
     try_box_init(&o);
     if (o.state == ObjectState::kCandidate && o.has_quadric && o.existence >= confirm_log_odds &&
-        agrees_with_depth(o) && rises_from_support(o)) {
+        agrees_with_depth(o) && stands_out(o) && rises_from_support(o)) {
       o.state = ObjectState::kConfirmed;
     }
   }

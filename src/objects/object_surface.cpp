@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 namespace dqo::objects {
@@ -80,6 +81,40 @@ std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCa
     }
   }
   return out;
+}
+
+double stand_out_share(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c, const PinholeCamera& camera,
+                       const DepthView& depth, const SurfaceParams& params) {
+  if (depth.data == nullptr || !box.valid() || box_points_c.empty()) return std::nan("");
+  const double gx = std::max(8.0, 0.25 * box.width()), gy = std::max(8.0, 0.25 * box.height());
+  const double x0 = std::max(0.0, box.x_min - gx), y0 = std::max(0.0, box.y_min - gy);
+  const double x1 = std::min<double>(depth.width, box.x_max + gx), y1 = std::min<double>(depth.height, box.y_max + gy);
+  const double ring_area = (x1 - x0) * (y1 - y0) - box.area();
+  if (!(ring_area > 0.0)) return std::nan("");
+  const double step = std::max(1.0, std::sqrt(ring_area / 300.0));
+  std::vector<Eigen::Vector3d> ring;
+  for (double v = y0 + 0.5 * step; v < y1; v += step) {
+    for (double u = x0 + 0.5 * step; u < x1; u += step) {
+      if (u >= box.x_min && u < box.x_max && v >= box.y_min && v < box.y_max) continue;
+      const int iu = static_cast<int>(u), iv = static_cast<int>(v);
+      const float z = depth.at(iu, iv);
+      if (!std::isfinite(z) || z < params.min_depth || z > params.max_depth) continue;
+      ring.push_back(camera.back_project(iu, iv, z));
+    }
+  }
+  if (ring.size() < 30) return std::nan("");
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : ring) mean += p;
+  mean /= static_cast<double>(ring.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& p : ring) cov += (p - mean) * (p - mean).transpose();
+  cov /= static_cast<double>(ring.size());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  const Eigen::Vector3d n = eig.eigenvectors().col(0);
+  if (std::sqrt(std::max(0.0, eig.eigenvalues()(0))) > params.plane_tolerance) return std::nan("");
+  int out = 0;
+  for (const Eigen::Vector3f& p : box_points_c) out += std::abs((p.cast<double>() - mean).dot(n)) > params.stand_out_distance;
+  return static_cast<double>(out) / static_cast<double>(box_points_c.size());
 }
 
 SupportEstimate find_support(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,

@@ -25,6 +25,15 @@ namespace dqo::objects {
 std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCamera& camera,
                                                const DepthView& depth, const SurfaceParams& params);
 
+// How much a detection's content stands out of the surface around it: the share of `box_points_c`
+// (the box's samples, camera frame) farther than stand_out_distance from the plane fitted to the
+// depth in a ring around the box (the box grown by a quarter of its size on each side). A
+// detector's clutter on a wall or a table is a patch of that surface (share near 0); an object
+// stands out of it. NaN where the ring is no plane (its rms above plane_tolerance: another
+// object, a corner) or holds too few samples: nothing to say.
+double stand_out_share(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c, const PinholeCamera& camera,
+                       const DepthView& depth, const SurfaceParams& params);
+
 struct SupportEstimate {
   bool found = false;
   double z = 0.0;       // height of the support's top (map frame, z up)

@@ -343,6 +343,13 @@ void AssociationNode::process(const dqo_map::KeyFrame& kf, const dqo_map::Detect
              "size, or outside the %dx%d image)", kf_id, invalid, result.verdicts.size(), okf.camera.width,
              okf.camera.height);
   }
+  int started = 0;
+  for (const auto v : result.verdicts) started += v == objects::DetectionVerdict::kNewObject;
+  if (started >= 10 && !throttled("clutter")) {
+    ROS_WARN("association: keyframe %llu: %d of %zu detections started candidates (clutter?); a candidate is "
+             "confirmed only by repeated detections where its depth agrees (objects/lifecycle/existence)",
+             kf_id, started, result.verdicts.size());
+  }
   if (over_limit > 0 && !throttled("over_limit")) {
     ROS_WARN("association: keyframe %llu: %zu detections, %d beyond the per-keyframe limit "
              "(objects/filter/max_detections) dropped", kf_id, result.verdicts.size(), over_limit);

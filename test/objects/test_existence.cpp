@@ -5,6 +5,7 @@
 // is never detected again stays while the depth shows it, and goes once the depth sees through it.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <set>
 #include <gtest/gtest.h>
@@ -220,6 +221,64 @@ TEST(ObjectLifecycle, NeverDetectedAgainStaysWhileTheDepthShowsItAndGoesWhenItLe
   no_free_space.lifecycle.existence.free_space = 0.0;
   const LifeRun slower = run(60, [](int k) { return k < 6; }, [](int k) { return k < 30; }, no_free_space);
   EXPECT_EQ(slower.confirmed_removed_at, 30 + 9);
+}
+
+// Bad detectors: 50 random clutter boxes per keyframe beside the real object, and every label
+// flipped every keyframe. One object, no spurious one, few renames.
+TEST(ObjectLifecycle, FiftyClutterBoxesAndLabelsFlippingEveryFrameLeaveOneObject) {
+  const DualQuadric q = cabinet();
+  const PinholeCamera camera = test_camera(320, 240);
+  ObjectMapper mapper;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  // A room: a wall 1.5 m behind the cabinet and the floor it stands on (flat ellipsoids 2 cm thick).
+  const DualQuadric wall = DualQuadric::from_params(Eigen::Vector3d(-1.5, 0.0, 2.0), Eigen::Matrix3d::Identity(),
+                                                    Eigen::Vector3d(0.01, 20.0, 20.0));
+  const DualQuadric floor = DualQuadric::from_params(Eigen::Vector3d(0.0, 0.0, -0.01), Eigen::Matrix3d::Identity(),
+                                                     Eigen::Vector3d(20.0, 20.0, 0.01));
+  int renamed = 0, created = 0;
+  for (int k = 0; k < 40; ++k) {
+    ObjectKeyFrame kf;
+    kf.id = static_cast<KeyFrameId>(k + 1);
+    kf.camera = camera;
+    kf.T_wc = arc_pose(k, 40, q.centre());
+    const DepthImage depth = render_depth({q, wall, floor}, camera, kf.T_wc);
+    kf.depth = test::view_of(depth);
+    Detection2d d = detection(*exact_box(q, camera, kf.T_wc), 60 + k % 7, 0.6f);  // a new label each frame
+    d.class_name = "class" + std::to_string(60 + k % 7);
+    kf.detections.push_back(d);
+    for (int c = 0; c < (k < 10 ? 50 : 0); ++c) {  // a burst of ten keyframes, then the detector recovers
+      const double w = 15 + 40 * u(rng), h = 15 + 40 * u(rng);
+      const double x = 6 + (camera.width - 12 - w) * u(rng), y = 6 + (camera.height - 12 - h) * u(rng);
+      Detection2d clutter = detection(Box2d{x, y, x + w, y + h}, static_cast<int>(u(rng) * 80), static_cast<float>(0.3 + 0.5 * u(rng)));
+      kf.detections.push_back(clutter);
+    }
+    const KeyFrameAssociation r = mapper.process_keyframe(kf);
+    for (const ObjectEvent& e : r.events) {
+      renamed += e.type == ObjectEvent::Type::kRenamed;
+      created += e.type == ObjectEvent::Type::kCreated;
+    }
+  }
+  // Clutter on the wall behind or the floor (a patch of its plane) confirms nothing; boxes that
+  // fall on the cabinet's own silhouette are pieces of a real surface and may stay as small
+  // objects on it.
+  int cabinet = 0, elsewhere = 0;
+  for (const MapObject& o : mapper.objects()) {
+    const Eigen::Vector3d x = q.rotation().transpose() * (o.quadric.centre() - q.centre());
+    const bool on_it = (x.array() / (q.semi_axes().array() + 0.1)).square().sum() <= 1.0;
+    cabinet += on_it;
+    elsewhere += !on_it;
+  }
+  EXPECT_GE(cabinet, 1);
+  // Known limit, measured: 500 random boxes in ten keyframes of a 320x240 image (several on every
+  // spot) leave one object where the wall meets the floor: surroundings of two planes say nothing
+  // about standing out (stand_out_share is NaN there). Without the stand-out test: 16 (of a
+  // 40-keyframe burst, 101).
+  EXPECT_LE(elsewhere, 1) << created << " created";
+  std::printf("[ INFO     ] %d confirmed objects on the cabinet, %d elsewhere, %d candidates created\n", cabinet, elsewhere, created);
+  EXPECT_GT(created, 100) << "the clutter did start candidates";
+  // Seven labels in turn: the hysteresis holds the name while they stay about equal.
+  EXPECT_LE(renamed, 3);
 }
 
 TEST(ObjectLifecycle, RenamedOnceWhenTheModeChangesBeyondTheMargin) {

@@ -18,12 +18,15 @@
 //     here by the test); object_overlay is the keyframe's size with the detection boxes and each
 //     object's conic centre (projected here independently) drawn in their colours;
 //   - bad input (NaN, negative and off-image boxes, a thousand detections, detections without a
-//     keyframe, a keyframe without detections, an unsupported depth encoding, time going back) is
-//     logged and skipped, and the node still answers list_objects with the same objects.
+//     keyframe, a keyframe without detections, an unsupported depth encoding, time going back, a
+//     detector flipping every label every keyframe and firing 50 clutter boxes, then one that sees
+//     nothing) is logged and skipped, and the node still answers list_objects with the same
+//     objects: none lost, none spurious.
 // A second test restarts an association_node of its own (namespace /dqo_restart) against the same
 // map (objects resumed), another map (not resumed; IDs not reused) and with fresh (none resumed).
 // Waits (seconds, each with its own failure message), against association.test's time-limit of 600:
 // connect 60 + bag 150 + processed 20 + settled 10 + Gaussian counts 10 + overlay 10 + bad input 100
+// (+ the bad detector's 16 keyframes, seconds each on an idle machine)
 // + restarts 4 x 20 + feeding 70 + listings 20 = 530, plus rendering the bag.
 #include <algorithm>
 #include <cmath>
@@ -709,6 +712,34 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
   // (e) time goes back (a looping bag): buffers cleared, logged
   pub_.det.publish(detections_at(captures_.front().stamp));
   EXPECT_TRUE(wait_for([&] { return rec_.logged("time went back"); }, 10.0)) << "no log line about the time jump";
+
+  // (f) a detector gone wrong for 8 keyframes: every label flipped every keyframe and 50 clutter
+  // boxes beside the real ones; then (g) one that sees nothing for 8 keyframes (objects it had
+  // confirmed stay: the depth still shows them).
+  std::vector<std::pair<int, std::string>> classes;
+  for (const auto& det : captures_.back().detections.detections) classes.emplace_back(det.class_id, det.class_name);
+  ros::Time tf = t3 + ros::Duration(30.0);
+  for (int k = 0; k < 16; ++k, tf += ros::Duration(0.1)) {
+    dqo_map::DetectionArray wrong = detections_at(tf);
+    if (k < 8) {
+      for (size_t i = 0; i < wrong.detections.size(); ++i) {
+        const auto& c = classes[(i + 1 + static_cast<size_t>(k)) % classes.size()];
+        wrong.detections[i].class_id = c.first;
+        wrong.detections[i].class_name = c.second;
+      }
+      for (int i = 0; i < 50; ++i) {
+        d.x_min = x(rng), d.y_min = y(rng), d.x_max = d.x_min + 20.f + s(rng), d.y_max = d.y_min + 20.f + s(rng);
+        d.class_id = 76, d.class_name = "scissors", d.score = 0.4f;
+        wrong.detections.push_back(d);
+      }
+    } else {
+      wrong.detections.clear();
+    }
+    pub_.det.publish(wrong);
+    kf_pub_.publish(keyframe_at(1000010 + static_cast<uint64_t>(k), tf));
+    EXPECT_TRUE(wait_for([&] { return rec_.has_kf_objects(tf); }, 20.0)) << "keyframe " << k << " of the bad detector not processed";
+  }
+  EXPECT_TRUE(wait_for([&] { return rec_.logged("started candidates"); }, 5.0)) << "no log line counting the clutter";
 
   // ---- still alive, and bad input made no confirmed object
   bool ok = false;

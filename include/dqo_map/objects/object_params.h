@@ -88,6 +88,12 @@ struct SurfaceParams {
   double support_reach = 0.1;         // m beyond the ellipsoid's footprint where the support is sought
   double support_band = 0.015;        // m; points this close above the support are the support
   double support_max_gap = 0.08;      // m; the object's lowest points within this of it: it rests on it
+  // A candidate is confirmed only where its detections' content stands out of the surface around
+  // them (object_surface.h stand_out_share; median over its observations that can tell): at least
+  // min_stand_out of the box's depth samples farther than stand_out_distance from the ring's plane.
+  double stand_out_distance = 0.02;   // m
+  double plane_tolerance = 0.015;     // m: the ring's rms about its plane, above which it is no plane
+  double min_stand_out = 0.15;
   int min_support_points = 20;        // around the object (outside its ellipsoid grown by half), in a 2 cm band
   // Refinement's priors where the object rests on a support in a levelled map: one ellipsoid axis
   // vertical (residual: that axis's horizontal part) and the ellipsoid's bottom on the support
