@@ -61,8 +61,10 @@ MissKind classify_miss(const DepthEvidenceCounts& n, const ExistenceParams& para
   return MissKind::kFreeSpace;
 }
 
-double after_detection(double log_odds, const std::string& class_name, const ExistenceParams& params) {
-  return std::clamp(log_odds + params.log_odds_detected(class_name), -params.max_log_odds, params.max_log_odds);
+double after_detection(double log_odds, const std::string& class_name, double score, const ExistenceParams& params) {
+  const double s = std::isfinite(score) ? std::clamp(score, 0.0, 1.0) : 0.0;
+  const double ratio = std::exp(params.log_odds_detected(class_name));
+  return std::clamp(log_odds + std::log(1.0 + s * (ratio - 1.0)), -params.max_log_odds, params.max_log_odds);
 }
 
 double after_miss(double log_odds, MissKind kind, const std::string& class_name, const ExistenceParams& params) {

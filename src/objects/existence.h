@@ -40,8 +40,10 @@ DepthEvidenceCounts depth_evidence(const DualQuadric& quadric, const Box2d& proj
 // No depth (data == nullptr) or no valid ray: kSupported (nothing contradicts the object).
 MissKind classify_miss(const DepthEvidenceCounts& counts, const ExistenceParams& params);
 
-// The log-odds after a detection or a miss of that kind, clamped to ±max_log_odds.
-double after_detection(double log_odds, const std::string& class_name, const ExistenceParams& params);
+// The log-odds after a detection or a miss of that kind, clamped to ±max_log_odds. A detection of
+// score s is right with probability s (a calibrated detector): its likelihood ratio mixes the
+// detector model's r / f with no evidence, 1 + s (r / f − 1); score 1 gives log(r / f).
+double after_detection(double log_odds, const std::string& class_name, double score, const ExistenceParams& params);
 double after_miss(double log_odds, MissKind kind, const std::string& class_name, const ExistenceParams& params);
 
 double logit(double p);

@@ -276,7 +276,7 @@ struct ObjectMapper::Impl {
       e.class_name = object->class_name;
       out->events.push_back(e);
     }
-    object->existence = after_detection(object->existence, object->class_name, params.lifecycle.existence);
+    object->existence = after_detection(object->existence, object->class_name, d.score, params.lifecycle.existence);
     object->missed = 0;
     object->last_keyframe = keyframe_id;
   }

@@ -111,9 +111,15 @@ double stand_out_share(const Box2d& box, const std::vector<Eigen::Vector3f>& box
   cov /= static_cast<double>(ring.size());
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
   const Eigen::Vector3d n = eig.eigenvectors().col(0);
-  if (std::sqrt(std::max(0.0, eig.eigenvalues()(0))) > params.plane_tolerance) return std::nan("");
+  // Depth noise grows with the square of the depth (a Kinect's σ ≈ 1.5 mm · z²): both tolerances
+  // grow with it (a floor 3 m away is no plane within 1.5 cm, nor flat within 2).
+  const double noise = 0.005 * mean.z() * mean.z();
+  if (std::sqrt(std::max(0.0, eig.eigenvalues()(0))) > params.plane_tolerance + noise) return std::nan("");
   int out = 0;
-  for (const Eigen::Vector3f& p : box_points_c) out += std::abs((p.cast<double>() - mean).dot(n)) > params.stand_out_distance;
+  for (const Eigen::Vector3f& p : box_points_c) {
+    const double z = p.z();
+    out += std::abs((p.cast<double>() - mean).dot(n)) > params.stand_out_distance + 0.005 * z * z;
+  }
   return static_cast<double>(out) / static_cast<double>(box_points_c.size());
 }
 
