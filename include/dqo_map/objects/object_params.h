@@ -93,7 +93,9 @@ struct SurfaceParams {
   // min_stand_out of the box's depth samples farther than stand_out_distance from the ring's plane.
   double stand_out_distance = 0.02;   // m
   double plane_tolerance = 0.015;     // m: the ring's rms about its plane, above which it is no plane
-  double min_stand_out = 0.15;
+  // A laptop on a desk seen from above: 0.05-0.06 of its box stands out (the screen); a patch of
+  // a wall or a table: none beyond the noise.
+  double min_stand_out = 0.03;
   int min_support_points = 20;        // around the object (outside its ellipsoid grown by half), in a 2 cm band
   // Refinement's priors where the object rests on a support in a levelled map: one ellipsoid axis
   // vertical (residual: that axis's horizontal part) and the ellipsoid's bottom on the support
