@@ -124,6 +124,20 @@ struct ObjectMapper::Impl {
   // centres that saw them.
   void surface_of(const MapObject& object, int max_views, std::vector<Eigen::Vector3d>* points,
                   std::vector<Eigen::Vector3d>* cameras) const {
+    // At most max_points in all: every stride-th sample of each view (bounded cost per object).
+    size_t total = 0;
+    {
+      int n = 0;
+      for (auto o = object.observations.rbegin(); o != object.observations.rend() && n < max_views; ++o, ++n) {
+        const auto it = keyframes.find(o->keyframe_id);
+        if (it == keyframes.end()) continue;
+        for (const auto& [box, pts] : it->second.box_points) {
+          if (same_box(box, o->box)) total += pts.size();
+        }
+      }
+    }
+    const size_t limit = static_cast<size_t>(std::max(1, params.surface.max_points));
+    const size_t stride = std::max<size_t>(1, (total + limit - 1) / limit);
     int used = 0;
     for (auto o = object.observations.rbegin(); o != object.observations.rend() && used < max_views; ++o) {
       const auto it = keyframes.find(o->keyframe_id);
@@ -132,7 +146,7 @@ struct ObjectMapper::Impl {
         if (!same_box(box, o->box)) continue;
         const Eigen::Matrix3d R = it->second.T_wc.rotation();
         const Eigen::Vector3d t = it->second.T_wc.translation();
-        for (const Eigen::Vector3f& p : pts) points->push_back(R * p.cast<double>() + t);
+        for (size_t i = 0; i < pts.size(); i += stride) points->push_back(R * pts[i].cast<double>() + t);
         cameras->push_back(t);
         ++used;
         break;

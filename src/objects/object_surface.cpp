@@ -201,26 +201,35 @@ SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, c
   out.points = static_cast<int>(points_w.size());
   if (out.points < params.min_points) return out;
   const Eigen::Vector3d origin = detections_box.centre;
+  // The trimmed footprint's area at a yaw (x and y only; two nth_elements per axis).
+  std::vector<double> u(points_w.size()), v(points_w.size());
   auto area = [&](double yaw) {
-    const auto e = trimmed_extents(points_w, origin, yaw, params.trim_quantile);
-    return (e[0].hi - e[0].lo) * (e[1].hi - e[1].lo);
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    for (size_t i = 0; i < points_w.size(); ++i) {
+      const double dx = points_w[i].x() - origin.x(), dy = points_w[i].y() - origin.y();
+      u[i] = c * dx + s * dy;
+      v[i] = -s * dx + c * dy;
+    }
+    const double wu = quantile(u, 1.0 - params.trim_quantile) - quantile(u, params.trim_quantile);
+    const double wv = quantile(v, 1.0 - params.trim_quantile) - quantile(v, params.trim_quantile);
+    return wu * wv;
   };
   // The footprint's yaw: the smallest trimmed footprint over 2° steps, where it is clearly smaller
   // than the detections' box yaw's (round objects keep that one).
   const double yaw_detections = yaw_of(detections_box.rotation);
   double best_yaw = yaw_detections, best_area = area(yaw_detections);
   const double detections_area = best_area;
-  for (int k = 0; k < 45; ++k) {
+  double worst_area = best_area;
+  for (int k = 1; k < 45; ++k) {
     const double yaw = yaw_detections + k * M_PI / 90.0;
     const double a = area(yaw);
     if (a < best_area) best_area = a, best_yaw = yaw;
+    worst_area = std::max(worst_area, a);
   }
   double yaw = best_area < 0.9 * detections_area ? best_yaw : yaw_detections;
   // A round footprint (a bottle, a bowl) has no yaw of its own: the smallest and the largest
   // trimmed footprint within round_footprint of each other. Its box is then aligned with the map's
   // axes, a convention (the area is the same for every yaw) that keeps it from turning with noise.
-  double worst_area = 0.0;
-  for (int k = 0; k < 45; ++k) worst_area = std::max(worst_area, area(yaw_detections + k * M_PI / 90.0));
   if (best_area >= params.round_footprint * worst_area) yaw = 0.0;
   const std::array<Extent, 3> p = trimmed_extents(points_w, origin, yaw, params.trim_quantile);
   // The detections' box in the same frame: its corners' extent.

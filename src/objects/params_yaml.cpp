@@ -108,6 +108,7 @@ Section schema(ObjectMapperParams& p) {
                           {"min_depth", &sf.min_depth, 0.0, kInf},
                           {"max_depth", &sf.max_depth, 0.0, kInf},
                           {"max_views", &sf.max_views, 1, 100000},
+                          {"max_points", &sf.max_points, 1, 100000000},
                           {"ellipsoid_margin", &sf.ellipsoid_margin, 1.0, 10.0},
                           {"min_points", &sf.min_points, 1, 100000000},
                           {"min_extent_ratio", &sf.min_extent_ratio, 0.0, 1.0},

@@ -141,8 +141,10 @@ bool run_scene(const Options& o, const std::string& scene, const std::string& st
 }
 
 // 50 ellipsoids on a 10 x 5 grid, seen by a camera sliding past: build the map from a few
-// keyframes (refinement off, it is timed apart), then time the association of the next ones.
-void run_timing(const dqo::objects::ObjectMapperParams& base) {
+// keyframes, then time the next ones. `depth`: keyframes carry a depth image (a wall 0.3 m behind
+// the grid), so the depth steps run too (depth ellipsoids, surface samples, stand-out, the misses'
+// depth evidence); `whole`: refinement, box fit and surface boxes on as well (the whole keyframe).
+void run_timing(const dqo::objects::ObjectMapperParams& base, bool depth, bool whole) {
   dqo::PinholeCamera camera;
   camera.width = 1280;
   camera.height = 720;
@@ -170,8 +172,9 @@ void run_timing(const dqo::objects::ObjectMapperParams& base) {
     return dqo::SE3::from_rotation_translation(Rwc, eye);
   };
   dqo::objects::ObjectMapperParams params = base;
-  params.refine = false;          // timed apart (the scene runs)
-  params.box_fit.enabled = false;  // likewise, so that the thread CPU time is the association's
+  params.refine = whole;          // otherwise timed apart (the scene runs)
+  params.box_fit.enabled = whole;  // likewise, so that the thread CPU time is the association's
+  dqo::DepthImage wall(camera.width, camera.height, 1, 2.9f);
   std::vector<double> ms, cpu_ms;
   int associated = 0, total = 0;
   dqo::objects::ObjectMapper mapper(params);
@@ -180,6 +183,11 @@ void run_timing(const dqo::objects::ObjectMapperParams& base) {
     kf.id = static_cast<dqo::objects::KeyFrameId>(k + 1);
     kf.camera = camera;
     kf.T_wc = pose(k);
+    if (depth) {
+      kf.depth.data = wall.data.data();
+      kf.depth.width = wall.width;
+      kf.depth.height = wall.height;
+    }
     for (const auto& q : objects) {
       const auto p = dqo::projected_box(q, camera, kf.T_wc.inverse(), 0.05);
       if (!p) continue;
@@ -193,7 +201,7 @@ void run_timing(const dqo::objects::ObjectMapperParams& base) {
     const auto r = mapper.process_keyframe(kf);
     const double cpu = thread_cpu_ms() - cpu0;
     if (k >= 10) {
-      ms.push_back(r.association_ms);
+      ms.push_back(r.association_ms + (whole ? r.refinement_ms + r.box_fit_ms : 0.0));
       cpu_ms.push_back(cpu);
       for (const auto v : r.verdicts) {
         associated += v == dqo::objects::DetectionVerdict::kAssociated;
@@ -201,9 +209,11 @@ void run_timing(const dqo::objects::ObjectMapperParams& base) {
       }
     }
   }
-  std::printf("association, 50 objects x %.0f detections per keyframe (%zu keyframes after 10 to build "
+  std::printf("%s, 50 objects x %.0f detections per keyframe (%zu keyframes after 10 to build "
               "the map): wall median %.3f ms, p90 %.3f ms; thread CPU median %.3f ms, p90 %.3f ms; %d of %d "
               "detections associated; %zu objects\n",
+              whole ? "whole keyframe (association, refinement, box fit, surface; with depth)"
+                    : depth ? "association with depth" : "association",
               static_cast<double>(total) / std::max<size_t>(1, ms.size()), ms.size(), median(ms),
               percentile(ms, 0.9), median(cpu_ms), percentile(cpu_ms, 0.9), associated, total,
               mapper.objects().size());
@@ -279,6 +289,10 @@ int main(int argc, char** argv) {
                   percentile(refinement_ms, 0.9), refinement_ms.size());
     }
   }
-  if (o.timing) run_timing(base);
+  if (o.timing) {
+    run_timing(base, false, false);
+    run_timing(base, true, false);
+    run_timing(base, true, true);
+  }
   return 0;
 }

@@ -78,6 +78,7 @@ struct SurfaceParams {
   double min_depth = 0.1;             // m; samples outside are ignored
   double max_depth = 8.0;
   int max_views = 30;                 // the newest observations' points are used
+  int max_points = 3000;              // at most this many of them (evenly strided): bounded cost
   double ellipsoid_margin = 1.25;     // points inside the ellipsoid scaled by this are the object's
   int min_points = 60;                // fewer: no surface box (the detections' box stays)
   // Each extent of the surface box (smallest to smallest, ...) at least this share of the
