@@ -6,6 +6,7 @@
 
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
+#include <Eigen/Geometry>
 
 #include "dqo_map/geometry/conic.h"
 #include "dqo_map/objects/object_refinement.h"
@@ -103,6 +104,28 @@ struct YawBoxResidual {
 
 }  // namespace
 
+UprightAxes upright_axes(const Eigen::Matrix3d& R) {
+  UprightAxes u;
+  u.up = 0;
+  for (int j = 1; j < 3; ++j) {
+    if (std::abs(R(2, j)) > std::abs(R(2, u.up))) u.up = j;
+  }
+  const int a = (u.up + 1) % 3, b = (u.up + 2) % 3;
+  u.hx = R.col(a).head<2>().norm() >= R.col(b).head<2>().norm() ? a : b;
+  u.hy = u.hx == a ? b : a;
+  u.yaw = std::atan2(R(1, u.hx), R(0, u.hx));
+  return u;
+}
+
+OrientedBox upright_box(const OrientedBox& box) {
+  const UprightAxes u = upright_axes(box.rotation);
+  OrientedBox out;
+  out.centre = box.centre;
+  out.rotation = Eigen::AngleAxisd(u.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  out.half_extents = Eigen::Vector3d(box.half_extents(u.hx), box.half_extents(u.hy), box.half_extents(u.up));
+  return out;
+}
+
 BoxFitResult fit_box(const DualQuadric& ellipsoid, const std::vector<BoxObservation>& views,
                      const BoxFitParams& params) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -130,15 +153,9 @@ BoxFitResult fit_box(const DualQuadric& ellipsoid, const std::vector<BoxObservat
   if (params.upright) {
     // The ellipsoid axis nearest the vertical becomes the box's z; the more horizontal of the
     // other two sets the yaw.
-    const Eigen::Matrix3d& R = ellipsoid.rotation();
-    int up = 0;
-    for (int j = 1; j < 3; ++j) {
-      if (std::abs(R(2, j)) > std::abs(R(2, up))) up = j;
-    }
-    const int a = (up + 1) % 3, b = (up + 2) % 3;
-    const int hx = R.col(a).head<2>().norm() >= R.col(b).head<2>().norm() ? a : b;
-    const int hy = hx == a ? b : a;
-    yaw[0] = std::atan2(R(1, hx), R(0, hx));
+    const UprightAxes u = upright_axes(ellipsoid.rotation());
+    const int up = u.up, hx = u.hx, hy = u.hy;
+    yaw[0] = u.yaw;
     const Eigen::Vector3d& s = ellipsoid.semi_axes();
     log_half[0] = std::log(s(hx) * params.initial_scale);
     log_half[1] = std::log(s(hy) * params.initial_scale);

@@ -18,6 +18,17 @@
 
 namespace dqo::objects {
 
+// A rotation's columns read as an upright frame: `up` the column nearest the vertical, `hx` the
+// more horizontal of the other two (its heading is the yaw), `hy` the last.
+struct UprightAxes {
+  int up = 2, hx = 0, hy = 1;
+  double yaw = 0.0;
+};
+UprightAxes upright_axes(const Eigen::Matrix3d& R);
+
+// The box turned upright about its axis nearest the vertical: the same extents, that yaw.
+OrientedBox upright_box(const OrientedBox& box);
+
 struct BoxFitResult {
   bool ok = false;
   OrientedBox box;

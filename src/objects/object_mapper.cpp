@@ -47,24 +47,6 @@ bool same_box(const Box2d& a, const Box2d& b) {
   return a.x_min == b.x_min && a.y_min == b.y_min && a.x_max == b.x_max && a.y_max == b.y_max;
 }
 
-// The box turned upright about its axis nearest the vertical (the ellipsoid's box may be tilted):
-// the same extents, the yaw of its most horizontal other axis.
-OrientedBox upright_box(const OrientedBox& b) {
-  const Eigen::Matrix3d& R = b.rotation;
-  int up = 0;
-  for (int j = 1; j < 3; ++j) {
-    if (std::abs(R(2, j)) > std::abs(R(2, up))) up = j;
-  }
-  const int a = (up + 1) % 3, c = (up + 2) % 3;
-  const int hx = R.col(a).head<2>().norm() >= R.col(c).head<2>().norm() ? a : c;
-  const int hy = hx == a ? c : a;
-  OrientedBox out;
-  out.centre = b.centre;
-  out.rotation = Eigen::AngleAxisd(std::atan2(R(1, hx), R(0, hx)), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  out.half_extents = Eigen::Vector3d(b.half_extents(hx), b.half_extents(hy), b.half_extents(up));
-  return out;
-}
-
 // The trimmed extent of the points along a direction.
 double spread_along(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& origin,
                     const Eigen::Vector3d& direction, double trim) {

@@ -16,6 +16,7 @@
 #include <ceres/problem.h>
 #include <ceres/solver.h>
 
+#include "box_fit.h"
 #include "conic_box_cost.h"
 
 namespace dqo::objects {
@@ -201,12 +202,8 @@ void refine_impl(const DualQuadric& initial, const std::vector<BoxObservation>& 
                              state.log_axes);
   }
   if (priors.upright && priors.upright_weight > 0.0) {
-    const Eigen::Matrix3d& R = initial.rotation();
-    int up = 0;
-    for (int j = 1; j < 3; ++j) {
-      if (std::abs(R(2, j)) > std::abs(R(2, up))) up = j;
-    }
-    problem.AddResidualBlock(UprightPrior::Create(up, priors.upright_weight), nullptr, state.q_wxyz);
+    problem.AddResidualBlock(UprightPrior::Create(upright_axes(initial.rotation()).up, priors.upright_weight),
+                             nullptr, state.q_wxyz);
   }
   if (priors.on_support && priors.support_weight > 0.0 && priors.support_scale > 0.0) {
     problem.AddResidualBlock(SupportPrior::Create(priors.support_z, priors.support_weight, priors.support_scale),
