@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <set>
 
 #include <Eigen/Geometry>
@@ -34,30 +35,29 @@ struct KeyframeRecord {
   SE3 T_wc;
   Eigen::Matrix<double, 3, 4> P = Eigen::Matrix<double, 3, 4>::Zero();
   uint64_t sequence = 0;  // how many keyframes came before it
-  // The single-view depth ellipsoid of each kept detection that has one (depth images are not
-  // kept): the depth evidence that box-plane quadrics of the observations are checked against.
-  std::vector<std::pair<Box2d, DualQuadric>> depth_quadrics;
-  // Depth samples inside each kept detection's box, camera frame (SurfaceParams): the objects'
-  // own surface, moved with the keyframe when bundle adjustment corrects its pose.
-  std::vector<std::pair<Box2d, std::vector<Eigen::Vector3f>>> box_points;
-  std::vector<std::pair<Box2d, double>> stand_out;  // stand_out_share of each kept detection
+  // What the keyframe's depth said of each kept detection (depth images are not kept), found by
+  // its box (the filter leaves no two boxes alike).
+  struct DetectionDepth {
+    Box2d box;
+    // The single-view depth ellipsoid, where there is one: the depth evidence that box-plane
+    // quadrics of the observations are checked against.
+    std::optional<DualQuadric> ellipsoid;
+    // Depth samples inside the box, camera frame (SurfaceParams): the object's own surface, moved
+    // with the keyframe when bundle adjustment corrects its pose.
+    std::vector<Eigen::Vector3f> points;
+    double stand_out = std::nan("");  // stand_out_share of the box
+  };
+  std::vector<DetectionDepth> detections;
+
+  const DetectionDepth* find(const Box2d& b) const {
+    for (const DetectionDepth& d : detections) {
+      if (d.box.x_min == b.x_min && d.box.y_min == b.y_min && d.box.x_max == b.x_max && d.box.y_max == b.y_max) {
+        return &d;
+      }
+    }
+    return nullptr;
+  }
 };
-
-bool same_box(const Box2d& a, const Box2d& b) {
-  return a.x_min == b.x_min && a.y_min == b.y_min && a.x_max == b.x_max && a.y_max == b.y_max;
-}
-
-// The trimmed extent of the points along a direction.
-double spread_along(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& origin,
-                    const Eigen::Vector3d& direction, double trim) {
-  std::vector<double> d;
-  d.reserve(points.size());
-  for (const Eigen::Vector3d& p : points) d.push_back((p - origin).dot(direction));
-  if (d.empty()) return 0.0;
-  std::sort(d.begin(), d.end());
-  const auto at = [&](double q) { return d[static_cast<size_t>(q * static_cast<double>(d.size() - 1) + 0.5)]; };
-  return at(1.0 - trim) - at(trim);
-}
 
 Eigen::Vector3d sorted(Eigen::Vector3d v) {
   std::sort(v.data(), v.data() + 3);
@@ -80,17 +80,17 @@ struct ObjectMapper::Impl {
   std::map<int, std::string> class_names;
   std::string map_id;
 
-  // The depth ellipsoid of an observation's detection, found by its box in its keyframe.
-  const DualQuadric* depth_of(const ObjectObservation& o) const {
+  // What its keyframe's depth said of an observation's detection (nullptr: unknown keyframe, or
+  // no depth there).
+  const KeyframeRecord::DetectionDepth* depth_record_of(const ObjectObservation& o) const {
     const auto it = keyframes.find(o.keyframe_id);
-    if (it == keyframes.end()) return nullptr;
-    for (const auto& [box, q] : it->second.depth_quadrics) {
-      if (box.x_min == o.box.x_min && box.y_min == o.box.y_min && box.x_max == o.box.x_max &&
-          box.y_max == o.box.y_max) {
-        return &q;
-      }
-    }
-    return nullptr;
+    return it == keyframes.end() ? nullptr : it->second.find(o.box);
+  }
+
+  // The depth ellipsoid of an observation's detection.
+  const DualQuadric* depth_of(const ObjectObservation& o) const {
+    const KeyframeRecord::DetectionDepth* d = depth_record_of(o);
+    return d && d->ellipsoid ? &*d->ellipsoid : nullptr;
   }
 
   DepthEvidence evidence_of(const ObjectObservation& o) const {
@@ -106,33 +106,24 @@ struct ObjectMapper::Impl {
   // centres that saw them.
   void surface_of(const MapObject& object, int max_views, std::vector<Eigen::Vector3d>* points,
                   std::vector<Eigen::Vector3d>* cameras) const {
-    // At most max_points in all: every stride-th sample of each view (bounded cost per object).
+    std::vector<std::pair<const KeyframeRecord*, const KeyframeRecord::DetectionDepth*>> views;
     size_t total = 0;
-    {
-      int n = 0;
-      for (auto o = object.observations.rbegin(); o != object.observations.rend() && n < max_views; ++o, ++n) {
-        const auto it = keyframes.find(o->keyframe_id);
-        if (it == keyframes.end()) continue;
-        for (const auto& [box, pts] : it->second.box_points) {
-          if (same_box(box, o->box)) total += pts.size();
-        }
-      }
-    }
-    const size_t limit = static_cast<size_t>(std::max(1, params.surface.max_points));
-    const size_t stride = std::max<size_t>(1, (total + limit - 1) / limit);
-    int used = 0;
-    for (auto o = object.observations.rbegin(); o != object.observations.rend() && used < max_views; ++o) {
+    for (auto o = object.observations.rbegin(); o != object.observations.rend() && static_cast<int>(views.size()) < max_views; ++o) {
       const auto it = keyframes.find(o->keyframe_id);
       if (it == keyframes.end()) continue;
-      for (const auto& [box, pts] : it->second.box_points) {
-        if (!same_box(box, o->box)) continue;
-        const Eigen::Matrix3d R = it->second.T_wc.rotation();
-        const Eigen::Vector3d t = it->second.T_wc.translation();
-        for (size_t i = 0; i < pts.size(); i += stride) points->push_back(R * pts[i].cast<double>() + t);
-        cameras->push_back(t);
-        ++used;
-        break;
-      }
+      const KeyframeRecord::DetectionDepth* d = it->second.find(o->box);
+      if (!d) continue;
+      views.emplace_back(&it->second, d);
+      total += d->points.size();
+    }
+    // At most max_points in all: every stride-th sample of each view (bounded cost per object).
+    const size_t limit = static_cast<size_t>(std::max(1, params.surface.max_points));
+    const size_t stride = std::max<size_t>(1, (total + limit - 1) / limit);
+    for (const auto& [record, d] : views) {
+      const Eigen::Matrix3d R = record->T_wc.rotation();
+      const Eigen::Vector3d t = record->T_wc.translation();
+      for (size_t i = 0; i < d->points.size(); i += stride) points->push_back(R * d->points[i].cast<double>() + t);
+      cameras->push_back(t);
     }
   }
 
@@ -153,11 +144,8 @@ struct ObjectMapper::Impl {
     if (!params.surface.enabled) return true;
     std::vector<double> shares;
     for (const ObjectObservation& o : object.observations) {
-      const auto it = keyframes.find(o.keyframe_id);
-      if (it == keyframes.end()) continue;
-      for (const auto& [box, share] : it->second.stand_out) {
-        if (same_box(box, o.box) && std::isfinite(share)) shares.push_back(share);
-      }
+      const KeyframeRecord::DetectionDepth* d = depth_record_of(o);
+      if (d && std::isfinite(d->stand_out)) shares.push_back(d->stand_out);
     }
     if (shares.empty()) return true;
     std::nth_element(shares.begin(), shares.begin() + static_cast<long>(shares.size() / 2), shares.end());
@@ -239,7 +227,7 @@ struct ObjectMapper::Impl {
       surface_of(*object, params.surface.max_views, &points, &cameras);
       const std::vector<Eigen::Vector3d> own = object_points(points, object->quadric, SupportEstimate(), params.surface);
       if (static_cast<int>(own.size()) >= params.surface.min_points &&
-          spread_along(own, r.quadric.centre(), r.quadric.rotation().col(thin), params.surface.trim_quantile) >
+          trimmed_spread(own, r.quadric.rotation().col(thin), params.surface.trim_quantile) >
               8.0 * axes(thin)) {
         return;
       }
@@ -366,21 +354,21 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
   // the fine step's depth quadric, and (kept with the keyframe) the depth evidence of the
   // observations for the depth check of box-plane quadrics.
   std::vector<std::optional<DualQuadric>> det_depth(dets.size());
-  if (kf.depth.data != nullptr &&
-      (params.lifecycle.single_view_fallback || params.lifecycle.max_depth_disagreement > 0.0)) {
+  if (kf.depth.data != nullptr) {
+    const bool ellipsoids = params.lifecycle.single_view_fallback || params.lifecycle.max_depth_disagreement > 0.0;
     for (size_t d = 0; d < dets.size(); ++d) {
-      const QuadricInitResult r = initialise_from_depth(dets[d].box, kf.camera, kf.T_wc, kf.depth,
-                                                        params.lifecycle.depth_init);
-      if (!r.ok || !r.quadric.is_valid()) continue;
-      det_depth[d] = r.quadric;
-      record.depth_quadrics.emplace_back(dets[d].box, r.quadric);
-    }
-  }
-  if (kf.depth.data != nullptr && params.surface.enabled) {
-    for (const Detection2d& d : dets) {
-      record.box_points.emplace_back(d.box, sample_box_points(d.box, kf.camera, kf.depth, params.surface));
-      record.stand_out.emplace_back(
-          d.box, stand_out_share(d.box, record.box_points.back().second, kf.camera, kf.depth, params.surface));
+      KeyframeRecord::DetectionDepth rec;
+      rec.box = dets[d].box;
+      if (ellipsoids) {
+        const QuadricInitResult r = initialise_from_depth(dets[d].box, kf.camera, kf.T_wc, kf.depth,
+                                                          params.lifecycle.depth_init);
+        if (r.ok && r.quadric.is_valid()) det_depth[d] = rec.ellipsoid = r.quadric;
+      }
+      if (params.surface.enabled) {
+        rec.points = sample_box_points(rec.box, kf.camera, kf.depth, params.surface);
+        rec.stand_out = stand_out_share(rec.box, rec.points, kf.camera, kf.depth, params.surface);
+      }
+      record.detections.push_back(std::move(rec));
     }
   }
 
@@ -450,7 +438,6 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
       }
       ++o->missed;
       o->existence = after_miss(o->existence, *kind, o->class_name, params.lifecycle.existence);
-      if (*kind == MissKind::kFreeSpace) ++out.free_space_misses;
     }
   }
 

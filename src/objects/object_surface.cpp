@@ -185,13 +185,18 @@ std::vector<Eigen::Vector3d> object_points(const std::vector<Eigen::Vector3d>& p
   return out;
 }
 
+double trimmed_spread(const std::vector<Eigen::Vector3d>& points_w, const Eigen::Vector3d& direction, double trim) {
+  if (points_w.empty()) return 0.0;
+  std::vector<double> d;
+  d.reserve(points_w.size());
+  for (const Eigen::Vector3d& p : points_w) d.push_back(p.dot(direction));
+  const double lo = quantile(d, trim);
+  return quantile(d, 1.0 - trim) - lo;
+}
+
 bool flat_patch(const std::vector<Eigen::Vector3d>& points_w, const SurfaceParams& params) {
   if (static_cast<int>(points_w.size()) < params.min_points) return false;
-  std::vector<double> z;
-  z.reserve(points_w.size());
-  for (const Eigen::Vector3d& p : points_w) z.push_back(p.z());
-  const double lo = quantile(z, params.trim_quantile), hi = quantile(z, 1.0 - params.trim_quantile);
-  return hi - lo <= 2.0 * params.support_band;
+  return trimmed_spread(points_w, Eigen::Vector3d::UnitZ(), params.trim_quantile) <= 2.0 * params.support_band;
 }
 
 SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, const OrientedBox& detections_box,

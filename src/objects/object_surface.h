@@ -53,6 +53,9 @@ SupportEstimate find_support(const std::vector<Eigen::Vector3d>& points_w, const
 std::vector<Eigen::Vector3d> object_points(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,
                                            const SupportEstimate& support, const SurfaceParams& params);
 
+// The extent of the points along `direction` between the trim and 1 − trim quantiles (0 for none).
+double trimmed_spread(const std::vector<Eigen::Vector3d>& points_w, const Eigen::Vector3d& direction, double trim);
+
 // At least min_points points, all but the trimmed quantiles within 2 × support_band in height: a
 // patch of a horizontal surface, not an object standing on one.
 bool flat_patch(const std::vector<Eigen::Vector3d>& points_w, const SurfaceParams& params);

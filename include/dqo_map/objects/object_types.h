@@ -130,7 +130,6 @@ struct KeyFrameAssociation {
   double refinement_ms = 0.0;                  // IoU refinement of the objects seen
   double box_fit_ms = 0.0;                     // box fits of the objects seen
   int refined_objects = 0;
-  int free_space_misses = 0;                   // visible objects whose depth saw through them
   // One entry per refinement run in this keyframe (ok or not), for per-object timings.
   struct Refinement {
     ObjectId id = 0;
