@@ -12,6 +12,24 @@ bool inside_grown_ellipsoid(const DualQuadric& q, const Eigen::Vector3d& p_w, do
   return (x.array() / axes.array()).square().sum() <= 1.0;
 }
 
+bool seen_apart(const MapObject& a, const MapObject& b, double max_iou) {
+  // Observations are oldest first, at most one per keyframe: walk both lists together.
+  auto i = a.observations.begin();
+  auto j = b.observations.begin();
+  while (i != a.observations.end() && j != b.observations.end()) {
+    if (i->keyframe_id < j->keyframe_id) {
+      ++i;
+    } else if (j->keyframe_id < i->keyframe_id) {
+      ++j;
+    } else {
+      if (iou(i->box, j->box) < max_iou) return true;
+      ++i;
+      ++j;
+    }
+  }
+  return false;
+}
+
 std::vector<MergePair> find_merges(const std::vector<const MapObject*>& objects,
                                    const std::vector<VisibleObject>& visible,
                                    const MergeParams& params) {
@@ -41,6 +59,9 @@ std::vector<MergePair> find_merges(const std::vector<const MapObject*>& objects,
         continue;
       }
       if (!(overlap_ratio(big.box, small.box) > params.min_overlap)) continue;
+      // Two detections of one keyframe that went to the two objects: two things stood there
+      // (two chairs side by side, one behind the other from some views), not one object's pieces.
+      if (params.max_seen_apart_iou > 0.0 && seen_apart(i, j, params.max_seen_apart_iou)) continue;
       if (!inside_grown_ellipsoid(i.quadric, j.quadric.centre(), params.max_distance)) continue;
       pairs.push_back({small.index, big.index});
       used[order[a]] = used[order[b]] = true;

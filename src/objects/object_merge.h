@@ -8,6 +8,10 @@
 // METHOD.md says "the QD condition holds with d = 0.1" without defining it for two objects of
 // different sizes; QD itself (exp(−τ(Δμ + ΔS))) is small exactly for a piece and its whole, so
 // it cannot be the test. Containment of the centre is what "pieces of one object" means.
+//
+// Added to the paper: two objects that one keyframe detected apart (two detections, one to each)
+// are never merged (MergeParams::max_seen_apart_iou); without it two chairs side by side, which
+// from the side project one inside the other, end as one.
 #include <utility>
 #include <vector>
 #include "dqo_map/objects/object_params.h"
@@ -26,6 +30,10 @@ struct MergePair {
 std::vector<MergePair> find_merges(const std::vector<const MapObject*>& objects,
                                    const std::vector<VisibleObject>& visible,
                                    const MergeParams& params);
+
+// True when some keyframe has an observation of each whose boxes overlap less than max_iou (2D
+// IoU): that keyframe's detector saw two things, so the two are not pieces of one object.
+bool seen_apart(const MapObject& a, const MapObject& b, double max_iou);
 
 // True when p_w lies inside the ellipsoid grown by `margin` metres on each semi-axis.
 bool inside_grown_ellipsoid(const DualQuadric& q, const Eigen::Vector3d& p_w, double margin);

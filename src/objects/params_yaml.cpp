@@ -99,6 +99,7 @@ Section schema(ObjectMapperParams& p) {
                           {"min_overlap", &m.min_overlap, 0.0, 1.0},
                           {"max_distance", &m.max_distance, 0.0, kInf},
                           {"min_iou_3d_any_class", &m.min_iou_3d_any_class, 0.0, 1.01},
+                          {"max_seen_apart_iou", &m.max_seen_apart_iou, 0.0, 1.0},
                       },
                       {}},
               Section{"surface",

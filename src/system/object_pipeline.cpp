@@ -70,6 +70,7 @@ ObjectPipelineResult run_object_pipeline(const FrameSource& reader, const Object
         result.error = error;
         break;
       }
+      if (params.on_keyframe) params.on_keyframe(kf, r, mapper);
       ++result.keyframes;
       result.keyframe_T_wc.push_back(*T_wc);
       result.association_ms.push_back(r.association_ms);

@@ -14,6 +14,10 @@
 //
 //   bench_objects --data DIR [--scenes a,b,...] [--strategies iou,qd,iou+qd] [--poses-dir DIR]
 //                 [--config objects.yaml] [--no-timing] [--timing-only] [--verbose]
+//                 [--trace GT_ID,...]
+// --trace: for each keyframe, the detections of those ground-truth objects (the simulated
+// detector's gt_id), what became of each (verdict, object ID) and the events of those objects:
+// where an object is lost, absorbed or never confirmed, and why.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -47,6 +51,7 @@ struct Options {
   bool timing = true;
   bool accuracy = true;
   bool verbose = false;
+  std::vector<uint32_t> trace;  // ground-truth IDs whose detections are followed keyframe by keyframe
 };
 
 std::vector<std::string> split(const std::string& s) {
@@ -104,6 +109,40 @@ bool run_scene(const Options& o, const std::string& scene, const std::string& st
     }
     params.anchor_to_ground_truth = true;
   }
+  if (!o.trace.empty()) {
+    params.on_keyframe = [&o](const dqo::objects::ObjectKeyFrame& kf,
+                              const dqo::objects::KeyFrameAssociation& r,
+                              const dqo::objects::ObjectMapper& mapper) {
+      std::vector<dqo::objects::ObjectId> followed;
+      for (size_t d = 0; d < kf.detections.size(); ++d) {
+        const dqo::Detection2d& det = kf.detections[d];
+        if (std::find(o.trace.begin(), o.trace.end(), det.gt_id) == o.trace.end()) continue;
+        const dqo::objects::ObjectId id = d < r.object_ids.size() ? r.object_ids[d] : 0;
+        const dqo::objects::MapObject* obj = id ? mapper.find(id) : nullptr;
+        std::printf("  trace kf %u gt %u class %d score %.2f box [%.0f %.0f %.0f %.0f] -> %s object %u%s",
+                    static_cast<unsigned>(kf.id), det.gt_id, det.class_id, det.score, det.box.x_min,
+                    det.box.y_min, det.box.x_max, det.box.y_max, dqo::objects::to_string(r.verdicts[d]),
+                    static_cast<unsigned>(id), obj ? (obj->state == dqo::objects::ObjectState::kConfirmed ? " (confirmed" : " (candidate") : "");
+        if (obj) {
+          const Eigen::Vector3d c = obj->quadric.centre();
+          std::printf(", P %.3f, centre %.2f %.2f %.2f, class %d)", dqo::objects::existence_probability(*obj), c.x(),
+                      c.y(), c.z(), obj->class_id);
+        }
+        std::printf("\n");
+        if (id) followed.push_back(id);
+      }
+      for (const auto& e : r.events) {
+        const bool mine = std::find(followed.begin(), followed.end(), e.id) != followed.end() ||
+                          std::find(followed.begin(), followed.end(), e.into_id) != followed.end();
+        if (!mine) continue;
+        static const char* kNames[] = {"created", "merged", "removed", "renamed"};
+        std::printf("  trace kf %u event %s %u%s\n", static_cast<unsigned>(kf.id),
+                    kNames[static_cast<int>(e.type)], static_cast<unsigned>(e.id),
+                    e.type == dqo::objects::ObjectEvent::Type::kMerged
+                        ? (" into " + std::to_string(e.into_id)).c_str() : "");
+      }
+    };
+  }
   const dqo::system::ObjectPipelineResult r =
       dqo::system::run_object_pipeline(*reader, params, trajectory ? &*trajectory : nullptr);
   if (!r.ok) std::fprintf(stderr, "bench_objects: %s: %s\n", scene.c_str(), r.error.c_str());
@@ -128,10 +167,24 @@ bool run_scene(const Options& o, const std::string& scene, const std::string& st
               median(r.association_ms), median(r.refinement_ms), r.seconds);
   std::fflush(stdout);
   if (o.verbose) {
+    // Each box as its centre and the half extents of its world-axis-aligned bounds: where a box
+    // is off (too thick, too tall, shifted) reads at a glance.
+    auto box_text = [](const std::vector<dqo::eval::ObjectEstimate>& list, uint64_t id) {
+      for (const auto& e : list) {
+        if (e.id != id) continue;
+        const Eigen::Vector3d h = e.box.rotation.cwiseAbs() * e.box.half_extents;
+        char text[160];
+        std::snprintf(text, sizeof text, "c %.2f %.2f %.2f h %.2f %.2f %.2f", e.box.centre.x(),
+                      e.box.centre.y(), e.box.centre.z(), h.x(), h.y(), h.z());
+        return std::string(text);
+      }
+      return std::string("?");
+    };
     for (const auto& match : m.matches) {
-      std::printf("    gt %llu est %llu class %d iou3d %.3f iou2d %.3f cde %.2f cm\n",
+      std::printf("    gt %llu est %llu class %d iou3d %.3f iou2d %.3f cde %.2f cm | est %s | gt %s\n",
                   static_cast<unsigned long long>(match.gt_id), static_cast<unsigned long long>(match.est_id),
-                  match.class_id, match.iou_3d, match.iou_2d, 100.0 * match.centre_distance);
+                  match.class_id, match.iou_3d, match.iou_2d, 100.0 * match.centre_distance,
+                  box_text(est, match.est_id).c_str(), box_text(gt, match.gt_id).c_str());
     }
     for (const auto id : m.unmatched_gt) std::printf("    unmatched gt %llu\n", static_cast<unsigned long long>(id));
     for (const auto id : m.spurious) std::printf("    spurious est %llu\n", static_cast<unsigned long long>(id));
@@ -248,10 +301,12 @@ int main(int argc, char** argv) {
       o.accuracy = false;
     } else if (a == "--verbose") {
       o.verbose = true;
+    } else if (a == "--trace") {
+      for (const std::string& id : split(value())) o.trace.push_back(static_cast<uint32_t>(std::stoul(id)));
     } else {
       std::fprintf(stderr,
                    "usage: bench_objects --data DIR [--scenes a,b] [--strategies iou,qd,iou+qd] "
-                   "[--poses-dir DIR] [--config FILE] [--no-timing] [--timing-only] [--verbose]\n");
+                   "[--poses-dir DIR] [--config FILE] [--no-timing] [--timing-only] [--verbose] [--trace GT_ID,...]\n");
       return 2;
     }
   }

@@ -53,7 +53,7 @@ TEST(DetectionFilter, BorderMargin) {
 }
 
 TEST(DetectionFilter, DuplicatesKeepTheBetterScore) {
-  DetectionFilterParams p;  // same class 0.3, other class 0.6
+  DetectionFilterParams p;  // same class 0.5, other class 0.6
   // IoU of these two: 80x100 overlap of two 100x100 boxes = 8000 / 12000 = 0.667.
   const Detection2d a = det(100, 100, 200, 200, 1, 0.9f);
   const Detection2d b = det(120, 100, 220, 200, 1, 0.8f);
@@ -61,14 +61,17 @@ TEST(DetectionFilter, DuplicatesKeepTheBetterScore) {
   EXPECT_EQ(r.rejected[0], DetectionVerdict::kDuplicate);  // b loses to a
   EXPECT_FALSE(r.rejected[1].has_value());
   EXPECT_EQ(r.kept, std::vector<int>({1}));
-  // Other class: 0.667 > 0.6 still a duplicate; at IoU 0.5 (< 0.6) both stay, but same class
-  // (> 0.3) does not.
+  // Other class: 0.667 > 0.6 still a duplicate; at IoU 0.5 (< 0.6) both stay.
   EXPECT_EQ(filter_detections({a, det(120, 100, 220, 200, 2, 0.8f)}, kW, kH, p).rejected[1],
             DetectionVerdict::kDuplicate);
   const Detection2d c2 = det(133.34, 100, 233.34, 200, 2, 0.8f);  // IoU 0.5
-  const Detection2d c1 = det(133.34, 100, 233.34, 200, 1, 0.8f);
   EXPECT_FALSE(filter_detections({a, c2}, kW, kH, p).rejected[1].has_value());
-  EXPECT_EQ(filter_detections({a, c1}, kW, kH, p).rejected[1], DetectionVerdict::kDuplicate);
+  // Same class at IoU 0.43: two chairs side by side, one partly behind the other, both stay (the
+  // paper's 0.3 kept one); at 0.55 one is a duplicate.
+  const Detection2d beside = det(140, 100, 240, 200, 1, 0.8f);  // 6000 / 14000 = 0.43
+  EXPECT_FALSE(filter_detections({a, beside}, kW, kH, p).rejected[1].has_value());
+  const Detection2d over = det(129, 100, 229, 200, 1, 0.8f);  // 7100 / 12900 = 0.55
+  EXPECT_EQ(filter_detections({a, over}, kW, kH, p).rejected[1], DetectionVerdict::kDuplicate);
   // Disjoint boxes are never duplicates.
   EXPECT_EQ(filter_detections({a, det(300, 300, 400, 400)}, kW, kH, p).kept.size(), 2u);
 }

@@ -16,7 +16,11 @@ struct DetectionFilterParams {
   double min_area_px = 300.0;
   double max_area_fraction = 0.5;      // of the image area
   double border_margin_px = 5.0;       // boxes within this of the image border are dropped
-  double duplicate_iou_same_class = 0.3;
+  // METHOD.md (VOOM's filter): 0.3. Two chairs side by side, one partly behind the other, overlap
+  // 0.41-0.43 from the room's dining-table views: at 0.3 one of them was dropped in every such view
+  // and the two became one object (room 20/21 -> 21/21, mean 3D IoU 0.534 -> 0.588; BENCHMARKS.md).
+  // A detector's own NMS (0.45-0.65) already removes its duplicates.
+  double duplicate_iou_same_class = 0.5;
   double duplicate_iou_other_class = 0.6;
   int max_detections = 200;            // per keyframe; the rest (lowest scores) are dropped
 };
@@ -68,6 +72,10 @@ struct MergeParams {
   // Ellipsoids whose boxes overlap at least this 3D IoU merge whatever their classes: twins a
   // detector's confusions started (a cup seen as bottle). A cup on a book does not come near. >1: off.
   double min_iou_3d_any_class = 0.3;
+  // Two objects that one keyframe saw as two detections (one associated with each) whose boxes
+  // overlap less than this 2D IoU are two things and never merge (object_merge.h seen_apart). The
+  // detection filter's duplicate IoU keeps one of boxes that overlap more. 0: off (the paper).
+  double max_seen_apart_iou = 0.5;
 };
 
 // The object's own surface from depth (src/objects/object_surface.h): its box from its points and

@@ -28,6 +28,11 @@ struct ObjectPipelineParams {
   // that has both equals the ground truth there: objects then come out in the ground truth's
   // frame, comparable with objects_gt.txt, and the tracker's drift still counts in full.
   bool anchor_to_ground_truth = false;
+  // Called after each keyframe with what went in and what the mapper made of it (a benchmark's
+  // trace, an overlay writer); empty: nothing is called.
+  std::function<void(const objects::ObjectKeyFrame&, const objects::KeyFrameAssociation&,
+                     const objects::ObjectMapper&)>
+      on_keyframe;
 };
 
 struct ObjectPipelineResult {
