@@ -46,6 +46,7 @@ struct KeyframeRecord {
     // with the keyframe when bundle adjustment corrects its pose.
     std::vector<Eigen::Vector3f> points;
     double stand_out = std::nan("");  // stand_out_share of the box
+    std::optional<BackPlane> back_plane;  // find_back_plane's, camera frame
   };
   std::vector<DetectionDepth> detections;
 
@@ -105,7 +106,7 @@ struct ObjectMapper::Impl {
   // The world points of an object's newest observations (at most max_views) and the camera
   // centres that saw them.
   void surface_of(const MapObject& object, int max_views, std::vector<Eigen::Vector3d>* points,
-                  std::vector<Eigen::Vector3d>* cameras) const {
+                  std::vector<Eigen::Vector3d>* cameras, std::vector<BackPlane>* back_planes = nullptr) const {
     std::vector<std::pair<const KeyframeRecord*, const KeyframeRecord::DetectionDepth*>> views;
     size_t total = 0;
     for (auto o = object.observations.rbegin(); o != object.observations.rend() && static_cast<int>(views.size()) < max_views; ++o) {
@@ -124,6 +125,12 @@ struct ObjectMapper::Impl {
       const Eigen::Vector3d t = record->T_wc.translation();
       for (size_t i = 0; i < d->points.size(); i += stride) points->push_back(R * d->points[i].cast<double>() + t);
       cameras->push_back(t);
+      if (back_planes && d->back_plane) {
+        BackPlane w;
+        w.n = R * d->back_plane->n;
+        w.d = d->back_plane->d + w.n.dot(t);
+        back_planes->push_back(w);
+      }
     }
   }
 
@@ -367,6 +374,9 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
       if (params.surface.enabled) {
         rec.points = sample_box_points(rec.box, kf.camera, kf.depth, params.surface);
         rec.stand_out = stand_out_share(rec.box, rec.points, kf.camera, kf.depth, params.surface);
+        if (params.surface.back_plane_max_angle_deg > 0.0) {
+          rec.back_plane = find_back_plane(rec.box, rec.points, kf.camera, kf.depth, params.surface);
+        }
       }
       record.detections.push_back(std::move(rec));
     }
@@ -543,6 +553,7 @@ void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAss
   // the refinement its priors and the box its bottom.
   struct Surface {
     std::vector<Eigen::Vector3d> points, cameras;
+    std::vector<BackPlane> back_planes;
     SupportEstimate support;
   };
   std::map<ObjectId, Surface> surfaces;
@@ -551,7 +562,7 @@ void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAss
     const auto it = objects.find(id);
     if (!params.surface.enabled || it == objects.end() || !it->second.has_quadric) continue;
     Surface& s = surfaces[id];
-    surface_of(it->second, params.surface.max_views, &s.points, &s.cameras);
+    surface_of(it->second, params.surface.max_views, &s.points, &s.cameras, &s.back_planes);
     if (levelled) s.support = find_support(s.points, it->second.quadric, params.surface);
   }
   for (const ObjectId id : seen) {
@@ -611,11 +622,15 @@ void ObjectMapper::Impl::refine_seen(const std::set<ObjectId>& seen, KeyFrameAss
     const OrientedBox detections_box = o.has_box ? o.box : box_from_quadric(o.quadric);
     const std::vector<Eigen::Vector3d> own = object_points(s->second.points, o.quadric, s->second.support, params.surface);
     const SurfaceBoxResult sb = fit_surface_box(own, upright_box(detections_box), s->second.cameras, s->second.support,
-                                                params.surface);
+                                                params.surface, s->second.back_planes);
     // A box much thinner than the detections' in any direction comes from an ellipsoid that cut
-    // the points to a sliver: the detections' box stays.
+    // the points to a sliver: the detections' box stays. A face a plane behind the object held
+    // is thin for a reason (a clock on its wall): such an axis is not compared.
     const Eigen::Vector3d sorted_box = sorted(sb.box.half_extents), sorted_det = sorted(detections_box.half_extents);
-    if (sb.ok && (sorted_box.array() >= params.surface.min_extent_ratio * sorted_det.array()).all()) {
+    const bool no_sliver = sb.faces_from_back_planes > 0
+                               ? sb.min_extent_ratio >= params.surface.min_extent_ratio
+                               : (sorted_box.array() >= params.surface.min_extent_ratio * sorted_det.array()).all();
+    if (sb.ok && no_sliver) {
       o.box = sb.box;
       o.has_box = true;
     }

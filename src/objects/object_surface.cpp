@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <random>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
@@ -61,6 +63,29 @@ std::array<Extent, 3> trimmed_extents(const std::vector<Eigen::Vector3d>& points
 
 double yaw_of(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
 
+// About 300 depth samples of the ring around `box` (the box grown by a quarter of its size on each
+// side, the box itself left out), camera frame.
+std::vector<Eigen::Vector3d> ring_points(const Box2d& box, const PinholeCamera& camera, const DepthView& depth,
+                                         const SurfaceParams& params) {
+  std::vector<Eigen::Vector3d> ring;
+  const double gx = std::max(8.0, 0.25 * box.width()), gy = std::max(8.0, 0.25 * box.height());
+  const double x0 = std::max(0.0, box.x_min - gx), y0 = std::max(0.0, box.y_min - gy);
+  const double x1 = std::min<double>(depth.width, box.x_max + gx), y1 = std::min<double>(depth.height, box.y_max + gy);
+  const double ring_area = (x1 - x0) * (y1 - y0) - box.area();
+  if (!(ring_area > 0.0)) return ring;
+  const double step = std::max(1.0, std::sqrt(ring_area / 300.0));
+  for (double v = y0 + 0.5 * step; v < y1; v += step) {
+    for (double u = x0 + 0.5 * step; u < x1; u += step) {
+      if (u >= box.x_min && u < box.x_max && v >= box.y_min && v < box.y_max) continue;
+      const int iu = static_cast<int>(u), iv = static_cast<int>(v);
+      const float z = depth.at(iu, iv);
+      if (!std::isfinite(z) || z < params.min_depth || z > params.max_depth) continue;
+      ring.push_back(camera.back_project(iu, iv, z));
+    }
+  }
+  return ring;
+}
+
 }  // namespace
 
 std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCamera& camera,
@@ -86,22 +111,7 @@ std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCa
 double stand_out_share(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c, const PinholeCamera& camera,
                        const DepthView& depth, const SurfaceParams& params) {
   if (depth.data == nullptr || !box.valid() || box_points_c.empty()) return std::nan("");
-  const double gx = std::max(8.0, 0.25 * box.width()), gy = std::max(8.0, 0.25 * box.height());
-  const double x0 = std::max(0.0, box.x_min - gx), y0 = std::max(0.0, box.y_min - gy);
-  const double x1 = std::min<double>(depth.width, box.x_max + gx), y1 = std::min<double>(depth.height, box.y_max + gy);
-  const double ring_area = (x1 - x0) * (y1 - y0) - box.area();
-  if (!(ring_area > 0.0)) return std::nan("");
-  const double step = std::max(1.0, std::sqrt(ring_area / 300.0));
-  std::vector<Eigen::Vector3d> ring;
-  for (double v = y0 + 0.5 * step; v < y1; v += step) {
-    for (double u = x0 + 0.5 * step; u < x1; u += step) {
-      if (u >= box.x_min && u < box.x_max && v >= box.y_min && v < box.y_max) continue;
-      const int iu = static_cast<int>(u), iv = static_cast<int>(v);
-      const float z = depth.at(iu, iv);
-      if (!std::isfinite(z) || z < params.min_depth || z > params.max_depth) continue;
-      ring.push_back(camera.back_project(iu, iv, z));
-    }
-  }
+  const std::vector<Eigen::Vector3d> ring = ring_points(box, camera, depth, params);
   if (ring.size() < 30) return std::nan("");
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& p : ring) mean += p;
@@ -121,6 +131,56 @@ double stand_out_share(const Box2d& box, const std::vector<Eigen::Vector3f>& box
     out += std::abs((p.cast<double>() - mean).dot(n)) > params.stand_out_distance + 0.005 * z * z;
   }
   return static_cast<double>(out) / static_cast<double>(box_points_c.size());
+}
+
+std::optional<BackPlane> find_back_plane(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c,
+                                         const PinholeCamera& camera, const DepthView& depth,
+                                         const SurfaceParams& params) {
+  if (depth.data == nullptr || !box.valid() || box_points_c.size() < 10) return std::nullopt;
+  const std::vector<Eigen::Vector3d> ring = ring_points(box, camera, depth, params);
+  const size_t needed = std::max<size_t>(30, ring.size() / 3);
+  if (ring.size() < needed) return std::nullopt;
+  auto tolerance = [&](const Eigen::Vector3d& p) { return params.plane_tolerance + 0.005 * p.z() * p.z(); };
+  // RANSAC over triples of ring samples, seeded: the same depth gives the same plane.
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<size_t> pick(0, ring.size() - 1);
+  size_t best_count = 0;
+  Eigen::Vector3d best_n = Eigen::Vector3d::UnitZ();
+  double best_d = 0.0;
+  for (int iteration = 0; iteration < 64; ++iteration) {
+    const Eigen::Vector3d& a = ring[pick(rng)];
+    const Eigen::Vector3d& b = ring[pick(rng)];
+    const Eigen::Vector3d& c = ring[pick(rng)];
+    Eigen::Vector3d n = (b - a).cross(c - a);
+    if (!(n.norm() > 1e-9)) continue;
+    n.normalize();
+    double d = n.dot(a);
+    if (d < 0.0) n = -n, d = -d;  // facing away from the camera at the origin
+    size_t count = 0;
+    for (const Eigen::Vector3d& p : ring) count += std::abs(n.dot(p) - d) <= tolerance(p);
+    if (count > best_count) best_count = count, best_n = n, best_d = d;
+  }
+  if (best_count < needed) return std::nullopt;
+  // Least squares over the inliers.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::vector<const Eigen::Vector3d*> inliers;
+  for (const Eigen::Vector3d& p : ring) {
+    if (std::abs(best_n.dot(p) - best_d) <= tolerance(p)) inliers.push_back(&p), mean += p;
+  }
+  mean /= static_cast<double>(inliers.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d* p : inliers) cov += (*p - mean) * (*p - mean).transpose();
+  BackPlane plane;
+  plane.n = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+  plane.d = plane.n.dot(mean);
+  if (plane.d < 0.0) plane.n = -plane.n, plane.d = -plane.d;
+  // The box's content in front of it (towards the camera): the object stands before the plane,
+  // not in it (clutter on a wall) nor behind it (the ring is something in front of the object).
+  std::vector<double> signed_distance;
+  signed_distance.reserve(box_points_c.size());
+  for (const Eigen::Vector3f& p : box_points_c) signed_distance.push_back(plane.n.dot(p.cast<double>()) - plane.d);
+  if (!(quantile(signed_distance, 0.5) < -params.stand_out_distance)) return std::nullopt;
+  return plane;
 }
 
 SupportEstimate find_support(const std::vector<Eigen::Vector3d>& points_w, const DualQuadric& q,
@@ -201,7 +261,8 @@ bool flat_patch(const std::vector<Eigen::Vector3d>& points_w, const SurfaceParam
 
 SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, const OrientedBox& detections_box,
                                  const std::vector<Eigen::Vector3d>& camera_centres_w,
-                                 const SupportEstimate& support, const SurfaceParams& params) {
+                                 const SupportEstimate& support, const SurfaceParams& params,
+                                 const std::vector<BackPlane>& back_planes_w) {
   SurfaceBoxResult out;
   out.points = static_cast<int>(points_w.size());
   if (out.points < params.min_points) return out;
@@ -246,6 +307,7 @@ SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, c
     for (int i = 0; i < 3; ++i) b[i].lo = std::min(b[i].lo, l(i)), b[i].hi = std::max(b[i].hi, l(i));
   }
   std::array<Extent, 3> r;
+  std::array<bool, 3> held_axis{false, false, false};
   for (int i = 0; i < 3; ++i) {
     bool seen_lo = false, seen_hi = false;
     for (const Eigen::Vector3d& cam : camera_centres_w) {
@@ -256,6 +318,26 @@ SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, c
     r[i].lo = seen_lo ? p[i].lo : std::min(p[i].lo, b[i].lo);
     r[i].hi = seen_hi ? p[i].hi : std::max(p[i].hi, b[i].hi);
     out.faces_from_points += static_cast<int>(seen_lo) + static_cast<int>(seen_hi);
+    // An unseen horizontal face stops at a vertical plane behind the object (the median of the
+    // views' planes whose normal lies along this axis): the detections' box, from views all on
+    // one side, reaches through the wall a sofa stands against.
+    bool held = false;
+    for (const int side : {-1, 1}) {
+      if (i == 2 || (side < 0 ? seen_lo : seen_hi) || params.back_plane_max_angle_deg <= 0.0) continue;
+      const Eigen::Vector3d axis = side * frame.rotation.col(i);
+      std::vector<double> limits;  // along `axis` from the origin
+      for (const BackPlane& plane : back_planes_w) {
+        const double along = plane.n.dot(axis);
+        if (along < std::cos(params.back_plane_max_angle_deg * M_PI / 180.0)) continue;
+        limits.push_back((plane.d - plane.n.dot(origin)) / along);
+      }
+      if (limits.empty()) continue;
+      const double limit = quantile(limits, 0.5);
+      if (side > 0 && limit < r[i].hi) r[i].hi = std::max(p[i].hi, limit), held = true;
+      if (side < 0 && -limit > r[i].lo) r[i].lo = std::min(p[i].lo, -limit), held = true;
+    }
+    out.faces_from_back_planes += held;
+    held_axis[i] = held;
   }
   if (support.found) r[2].lo = support.z - origin.z();
   if (!(r[2].hi > r[2].lo)) return out;
@@ -264,6 +346,10 @@ SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, c
   out.box.centre = origin + frame.rotation * mid;
   out.box.half_extents = Eigen::Vector3d((r[0].hi - r[0].lo) / 2, (r[1].hi - r[1].lo) / 2, (r[2].hi - r[2].lo) / 2);
   out.ok = out.box.centre.allFinite() && out.box.half_extents.allFinite() && out.box.half_extents.minCoeff() > 0.0;
+  out.min_extent_ratio = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < 3; ++i) {
+    if (!held_axis[i]) out.min_extent_ratio = std::min(out.min_extent_ratio, (r[i].hi - r[i].lo) / std::max(1e-9, b[i].hi - b[i].lo));
+  }
   return out;
 }
 

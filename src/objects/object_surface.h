@@ -8,6 +8,7 @@
 // object's depth points underestimate its unseen back. The surface box takes each face from the
 // points where some keyframe looked at that face, from the detections' box where none did, and the
 // bottom from the support the object rests on.
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
@@ -33,6 +34,22 @@ std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCa
 // object, a corner) or holds too few samples: nothing to say.
 double stand_out_share(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c, const PinholeCamera& camera,
                        const DepthView& depth, const SurfaceParams& params);
+
+// A plane behind an object that it cannot pass: the wall a TV hangs on, the sofa's back behind a
+// cushion. n·p = d with n pointing away from the camera; frame as the caller's points.
+struct BackPlane {
+  Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+  double d = 0.0;
+};
+
+// The largest plane among the depth of the ring around `box` (as stand_out_share's ring; a
+// seeded RANSAC, so the same input gives the same plane), if it holds at least a third of the ring
+// (and 30 samples) and the box's content stands in front of it (the median of `box_points_c` more
+// than stand_out_distance on the camera's side). Camera frame. Unlike stand_out_share's one
+// plane, a part of the ring suffices: the wall above a sofa, with the floor below it.
+std::optional<BackPlane> find_back_plane(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c,
+                                         const PinholeCamera& camera, const DepthView& depth,
+                                         const SurfaceParams& params);
 
 struct SupportEstimate {
   bool found = false;
@@ -65,14 +82,22 @@ struct SurfaceBoxResult {
   OrientedBox box;
   int points = 0;
   int faces_from_points = 0;  // of the six faces, those a keyframe looked at
+  int faces_from_back_planes = 0;  // unseen faces held in front of a plane behind the object
+  // The smallest ratio, over the axes no back plane shortened, of the box's extent to the
+  // detections' box's along the same axis (callers refuse slivers by it).
+  double min_extent_ratio = 0.0;
 };
 
 // An upright box (yaw about z): the yaw of the smallest footprint of the points' trimmed extent
 // (the detections' box yaw where the points are too few or no yaw is clearly better); each side
 // from the points' trimmed extent where a camera looked at that face, else the farther of the
 // points' and the detections' box; the bottom on the support where the object rests on it.
+// back_planes_w: planes behind the object (find_back_plane's, in the map frame) from its views; an
+// unseen horizontal face whose axis is within back_plane_max_angle of a vertical plane's normal
+// (median over those planes) stops at that plane, not at the detections' box beyond it.
 SurfaceBoxResult fit_surface_box(const std::vector<Eigen::Vector3d>& points_w, const OrientedBox& detections_box,
                                  const std::vector<Eigen::Vector3d>& camera_centres_w,
-                                 const SupportEstimate& support, const SurfaceParams& params);
+                                 const SupportEstimate& support, const SurfaceParams& params,
+                                 const std::vector<BackPlane>& back_planes_w = {});
 
 }  // namespace dqo::objects

@@ -119,6 +119,7 @@ Section schema(ObjectMapperParams& p) {
                           {"support_band", &sf.support_band, 0.0, kInf},
                           {"support_max_gap", &sf.support_max_gap, 0.0, kInf},
                           {"min_support_points", &sf.min_support_points, 1, 100000000},
+                          {"back_plane_max_angle_deg", &sf.back_plane_max_angle_deg, 0.0, 90.0},
                           {"stand_out_distance", &sf.stand_out_distance, 0.0, kInf},
                           {"plane_tolerance", &sf.plane_tolerance, 0.0, kInf},
                           {"min_stand_out", &sf.min_stand_out, 0.0, 1.0},

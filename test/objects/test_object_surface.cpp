@@ -154,6 +154,81 @@ TEST(ObjectSurface, BoxFromThePointsWhereCamerasLookedAndFromTheDetectionsElsewh
   EXPECT_NEAR(r.box.centre.z() - r.box.half_extents.z(), 0.75, 0.004);
 }
 
+// Seen from one side only, standing against a wall: the unseen back stops at the wall (a plane
+// behind it, as find_back_plane gives), not at the detections' box that passes through it.
+TEST(ObjectSurface, AnUnseenBackStopsAtAPlaneBehindTheObject) {
+  std::mt19937_64 rng(4);
+  const OrientedBox truth = truth_box();
+  const SurfaceParams params;
+  OrientedBox detections = truth;
+  detections.half_extents *= 1.15;
+  detections.half_extents.x() *= 1.6;  // too deep along the views, as few views from one side give
+  const DualQuadric q = DualQuadric::from_params(truth.centre, truth.rotation, 1.3 * truth.half_extents);
+  const Eigen::Vector3d x_axis = truth.rotation.col(0);
+  const double yaw_x = std::atan2(x_axis.y(), x_axis.x());
+  const std::vector<Eigen::Vector3d> one_side = ring(truth.centre, yaw_x - 0.2, yaw_x + 0.2, 3, 0.5);
+  const std::vector<Eigen::Vector3d> pts = scene_points(truth, one_side, 0.75, 0.002, rng);
+  const SupportEstimate s = find_support(pts, q, params);
+  ASSERT_TRUE(s.found);
+  const std::vector<Eigen::Vector3d> own = object_points(pts, q, s, params);
+  auto back_of = [&](const SurfaceBoxResult& r) {
+    double lo = 1e9;
+    for (const Eigen::Vector3d& c : box_corners(r.box)) lo = std::min(lo, x_axis.dot(c - truth.centre));
+    return lo;
+  };
+  // The wall 5 mm behind the back face, its normal pointing away from the cameras (-x).
+  BackPlane wall;
+  wall.n = -x_axis;
+  wall.d = wall.n.dot(truth.centre - (truth.half_extents.x() + 0.005) * x_axis);
+  const SurfaceBoxResult held = fit_surface_box(own, detections, one_side, s, params, {wall, wall});
+  ASSERT_TRUE(held.ok);
+  EXPECT_EQ(held.faces_from_back_planes, 1);
+  EXPECT_NEAR(back_of(held), -truth.half_extents.x() - 0.005, 0.005);
+  EXPECT_GT(iou_3d(held.box, truth), 0.85);
+  // Without it the back reaches as far as the detections' box.
+  const SurfaceBoxResult free = fit_surface_box(own, detections, one_side, s, params);
+  ASSERT_TRUE(free.ok);
+  EXPECT_EQ(free.faces_from_back_planes, 0);
+  EXPECT_LT(back_of(free), -1.5 * truth.half_extents.x());
+  // A plane at 60° to the axis is no wall behind that face; one behind a face a camera saw does
+  // not move it.
+  BackPlane slanted = wall;
+  slanted.n = Eigen::AngleAxisd(60.0 * kPi / 180.0, Eigen::Vector3d::UnitZ()) * wall.n;
+  EXPECT_EQ(fit_surface_box(own, detections, one_side, s, params, {slanted}).faces_from_back_planes, 0);
+  BackPlane in_front = wall;
+  in_front.n = x_axis;
+  in_front.d = in_front.n.dot(truth.centre + 0.5 * truth.half_extents.x() * x_axis);
+  EXPECT_EQ(fit_surface_box(own, detections, one_side, s, params, {in_front}).faces_from_back_planes, 0);
+}
+
+// The wall behind an object, from the ring of depth around its box; nothing where the ring is no
+// plane behind the box's content.
+TEST(ObjectSurface, FindsTheWallBehindAnObject) {
+  const PinholeCamera camera = test::test_camera();
+  const SE3 T_wc = SE3::identity();
+  const DualQuadric object = DualQuadric::from_params(Eigen::Vector3d(0.1, 0.0, 1.5), Eigen::Matrix3d::Identity(),
+                                                      Eigen::Vector3d(0.2, 0.25, 0.15));
+  const auto box = test::exact_box(object, camera, T_wc);
+  ASSERT_TRUE(box);
+  const SurfaceParams params;
+  // A wall facing the camera 2.5 m away (render_depth's background depth).
+  const DepthImage depth = test::render_depth({object}, camera, T_wc, 2.5f);
+  const std::vector<Eigen::Vector3f> points = sample_box_points(*box, camera, test::view_of(depth), params);
+  const std::optional<BackPlane> wall = find_back_plane(*box, points, camera, test::view_of(depth), params);
+  ASSERT_TRUE(wall);
+  EXPECT_NEAR(wall->n.z(), 1.0, 1e-6);
+  EXPECT_NEAR(wall->d, 2.5, 1e-4);
+  // No depth around the object (a window): no plane.
+  const DepthImage open = test::render_depth({object}, camera, T_wc, 0.0f);
+  EXPECT_FALSE(find_back_plane(*box, sample_box_points(*box, camera, test::view_of(open), params), camera,
+                               test::view_of(open), params));
+  // A box drawn on the wall itself (clutter): its content is the wall, not in front of it.
+  const DepthImage bare = test::render_depth({}, camera, T_wc, 2.5f);
+  const Box2d patch{250, 180, 330, 260};
+  EXPECT_FALSE(find_back_plane(patch, sample_box_points(patch, camera, test::view_of(bare), params), camera,
+                               test::view_of(bare), params));
+}
+
 // Recurring clutter on a table is a flat patch of it; a book lying on the table is not.
 TEST(ObjectSurface, AFlatPatchOfTheTableIsNoObject) {
   std::mt19937_64 rng(3);

@@ -106,6 +106,10 @@ struct SurfaceParams {
   // a wall or a table: none beyond the noise.
   double min_stand_out = 0.03;
   int min_support_points = 20;        // around the object (outside its ellipsoid grown by half), in a 2 cm band
+  // An unseen horizontal face of the surface box stops at a vertical plane seen behind the object
+  // around its boxes (object_surface.h find_back_plane: a wall, a sofa's back) whose normal lies
+  // within this angle of the face's axis. 0: off (the face from the detections' box).
+  double back_plane_max_angle_deg = 30.0;
   // Refinement's priors where the object rests on a support in a levelled map: one ellipsoid axis
   // vertical (residual: that axis's horizontal part) and the ellipsoid's bottom on the support
   // (residual in units of support_scale). Weighed against each view's 1 − GIoU: the views can
