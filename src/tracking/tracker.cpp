@@ -213,9 +213,27 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
   e.dense_ok = prior.has_value();
   e.dense_rms = dense.whitened_rms;
   e.dense_inlier_ratio = dense.inlier_ratio;
-  const SE3 T_wc_dense = prior ? prior->T_w_ref * prior->T_ref_cur : SE3();
+  SE3 T_wc_dense = prior ? prior->T_w_ref * prior->T_ref_cur : SE3();
+  bool dense_pose = prior.has_value();
+  // Features alone (asynchronous depth) with nothing to confirm them: dense alignment from their
+  // pose, as evidence only (QualityParams::confirm_features).
+  if (features.ok && !prior && depth_asynchronous_ && params_.quality.confirm_features) {
+    DenseResult check;
+    e.dense_tried = true;
+    e.dense_from_features = true;
+    e.dense_ok = false;
+    if (const auto T_wc_check = confirm_features(pyramid, features.T_wc, &check)) {
+      e.dense_ok = true;
+      T_wc_dense = *T_wc_check;
+      dense_pose = true;
+    } else {
+      dense_pose = false;
+    }
+    e.dense_rms = check.whitened_rms;
+    e.dense_inlier_ratio = check.inlier_ratio;
+  }
   auto compare = [&](const SE3& T_wc_features) {
-    if (!prior) return;
+    if (!dense_pose) return;
     const SE3 delta = T_wc_dense.inverse() * T_wc_features;
     e.compared = true;
     e.disagreement_m = delta.translation().norm();
@@ -436,6 +454,19 @@ std::optional<DensePrior> Tracker::Impl::realign(const RgbdPyramid* pyramid,
   prior.T_ref_cur = result->T_ref_cur;
   prior.information = params_.pose.dense_prior_weight * result->information;
   return prior;
+}
+
+std::optional<SE3> Tracker::Impl::confirm_features(const RgbdPyramid* pyramid,
+                                                   const SE3& T_wc_features,
+                                                   DenseResult* result) const {
+  // To the last frame, whatever its state. Against the last frame tracked ok instead (the
+  // anchor), a gap of a few fast frames already fails on fr1/desk (whitened RMS 2-2.8), and every
+  // frame after one unconfirmed frame stayed degraded to the end.
+  if (pyramid == nullptr || !last_ || !has_last_pyramid_) return std::nullopt;
+  *result = align_dense(last_pyramid_, *pyramid, last_->T_wc.inverse() * T_wc_features,
+                        params_.dense);
+  if (!result->ok) return std::nullopt;
+  return last_->T_wc * result->T_ref_cur;
 }
 
 bool Tracker::Impl::fuse_realigned(TrackedFrame* frame, const RgbdPyramid* pyramid, SE3* T_wc,

@@ -74,6 +74,8 @@ struct Tracker::Impl {
   std::optional<DensePrior> align_to_last(const RgbdPyramid* pyramid, DenseResult* dense);
   std::optional<DensePrior> realign(const RgbdPyramid* pyramid, const SE3& T_wc_guess,
                                     DenseResult* dense, bool* to_last) const;
+  std::optional<SE3> confirm_features(const RgbdPyramid* pyramid, const SE3& T_wc_features,
+                                      DenseResult* result) const;
   bool fuse_realigned(TrackedFrame* frame, const RgbdPyramid* pyramid, SE3* T_wc, int* inliers,
                       DenseResult* dense, std::optional<DensePrior>* prior, bool* to_last);
   FeatureOutcome track_features(TrackedFrame* frame, const DensePrior* prior, const SE3& T_wc_mm);

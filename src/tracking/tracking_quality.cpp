@@ -71,9 +71,16 @@ QualityVerdict assess_quality(const QualityEvidence& e, const QualityParams& p) 
   if (disagree) {
     // Two sources contradict each other: only features that hold by themselves are believed.
     v.state = features_hold ? TrackingState::kDegraded : TrackingState::kLost;
+  } else if (features_hold && dense && !dense_holds && e.dense_from_features &&
+             p.confirm_features) {
+    // Dense alignment from the features' own pose failed or fit poorly: the features are
+    // unconfirmed. On fr1/desk these are the motion-blurred frames, where many inliers still
+    // agree on a pose 3-5 cm off (the blur moves every keypoint alike).
+    v.state = TrackingState::kDegraded;
   } else if (features_hold) {
-    // Enough well spread inliers: dense alignment that failed to converge (a large step beyond
-    // its basin, missing depth) or fit poorly is no evidence against them; only contradiction is.
+    // Enough well spread inliers: dense alignment from the motion model that failed to converge
+    // (a large step beyond its basin, missing depth) or fit poorly is no evidence against them;
+    // only contradiction is.
     v.state = TrackingState::kOk;
   } else if (dense_holds && !features) {
     v.state = TrackingState::kOk;  // dense alone by configuration, and it holds

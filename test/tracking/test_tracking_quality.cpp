@@ -45,6 +45,31 @@ TEST(TrackingQuality, StrongFeaturesAreOkWhereDenseFailedToConverge) {
   EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
 }
 
+TEST(TrackingQuality, FeaturesThatDenseFromTheirOwnPoseCannotFitAreDegraded) {
+  // The motion-blurred frames of fr1/desk: 231 inliers over the image, dense alignment started
+  // at the features' pose ends at a whitened RMS of 1.9 (failed).
+  QualityEvidence e = good();
+  e.compared = false;
+  e.dense_ok = false;
+  e.dense_rms = 1.9;
+  e.dense_from_features = true;
+  auto v = assess_quality(e, QualityParams{});
+  EXPECT_EQ(v.state, TrackingState::kDegraded);
+  EXPECT_EQ(v.quality.reasons, reason::kDenseFailed);
+  // The same failure from the motion model's guess says nothing about the features.
+  e.dense_from_features = false;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
+  // Switched off: the features holding suffice.
+  e.dense_from_features = true;
+  QualityParams off;
+  off.confirm_features = false;
+  EXPECT_EQ(assess_quality(e, off).state, TrackingState::kOk);
+  // Confirmed: ok.
+  e = good();
+  e.dense_from_features = true;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
+}
+
 TEST(TrackingQuality, DisagreementDegradesStrongFeaturesAndLosesWeakOnes) {
   QualityEvidence e = good();
   e.disagreement_m = 0.10;  // 10 cm apart
