@@ -122,6 +122,7 @@ Section schema(TrackingConfig& c) {
                                   {"max_disagreement_m", &t.quality.max_disagreement_m, 0.0, kInf},
                                   {"max_disagreement_deg", &t.quality.max_disagreement_deg, 0.0, 180.0},
                                   {"confirm_features", &t.quality.confirm_features},
+                                  {"confirm_window_frames", &t.quality.confirm_window_frames, 0, 1000},
                               },
                               {}},
                       Section{"reloc",

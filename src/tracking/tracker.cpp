@@ -115,6 +115,7 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
       // The chain of dense references breaks here: keep the last good one (realign()).
       std::swap(anchor_pyramid_, last_pyramid_);
       anchor_T_wc_ = T_wc_previous;
+      anchor_frame_ = frame.number - 1;
       has_anchor_ = true;
       anchor_odometry_covariance_ = odometry_covariance_previous;
       anchor_odometry_valid_ = odometry_valid_previous;
@@ -217,12 +218,19 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
   bool dense_pose = prior.has_value();
   // Features alone (asynchronous depth) with nothing to confirm them: dense alignment from their
   // pose, as evidence only (QualityParams::confirm_features).
-  if (features.ok && !prior && depth_asynchronous_ && params_.quality.confirm_features) {
+  // Soon after a frame that was not ok, against the last ok one (the anchor) instead, whether dense
+  // from the motion model held or not: held, it confirms a step from a pose nothing confirmed (on
+  // fr1/desk the frame after two blurred ones, its features 5.3 cm off and consistent with them).
+  const bool after_doubt = reported_state_ != TrackingState::kOk && has_anchor_ &&
+                           frame->number <= anchor_frame_ + static_cast<uint64_t>(std::max(
+                                                                0, params_.quality.confirm_window_frames));
+  if (features.ok && (!prior || after_doubt) && depth_asynchronous_ &&
+      params_.quality.confirm_features) {
     DenseResult check;
     e.dense_tried = true;
     e.dense_from_features = true;
     e.dense_ok = false;
-    if (const auto T_wc_check = confirm_features(pyramid, features.T_wc, &check)) {
+    if (const auto T_wc_check = confirm_features(pyramid, features.T_wc, after_doubt, &check)) {
       e.dense_ok = true;
       T_wc_dense = *T_wc_check;
       dense_pose = true;
@@ -457,16 +465,20 @@ std::optional<DensePrior> Tracker::Impl::realign(const RgbdPyramid* pyramid,
 }
 
 std::optional<SE3> Tracker::Impl::confirm_features(const RgbdPyramid* pyramid,
-                                                   const SE3& T_wc_features,
+                                                   const SE3& T_wc_features, bool to_anchor,
                                                    DenseResult* result) const {
-  // To the last frame, whatever its state. Against the last frame tracked ok instead (the
-  // anchor), a gap of a few fast frames already fails on fr1/desk (whitened RMS 2-2.8), and every
-  // frame after one unconfirmed frame stayed degraded to the end.
-  if (pyramid == nullptr || !last_ || !has_last_pyramid_) return std::nullopt;
-  *result = align_dense(last_pyramid_, *pyramid, last_->T_wc.inverse() * T_wc_features,
-                        params_.dense);
+  // To the last frame, whatever its state, unless told to the anchor: against the last frame
+  // tracked ok every time, a gap of a few fast frames already fails on fr1/desk (whitened RMS
+  // 2-2.8) and every frame after one unconfirmed frame stayed degraded to the end
+  // (QualityParams::confirm_window_frames bounds it).
+  if (pyramid == nullptr || !last_) return std::nullopt;
+  if (to_anchor && !has_anchor_) return std::nullopt;
+  if (!to_anchor && !has_last_pyramid_) return std::nullopt;
+  const RgbdPyramid& reference = to_anchor ? anchor_pyramid_ : last_pyramid_;
+  const SE3 T_w_ref = to_anchor ? anchor_T_wc_ : last_->T_wc;
+  *result = align_dense(reference, *pyramid, T_w_ref.inverse() * T_wc_features, params_.dense);
   if (!result->ok) return std::nullopt;
-  return last_->T_wc * result->T_ref_cur;
+  return T_w_ref * result->T_ref_cur;
 }
 
 bool Tracker::Impl::fuse_realigned(TrackedFrame* frame, const RgbdPyramid* pyramid, SE3* T_wc,

@@ -147,6 +147,11 @@ struct QualityParams {
   // fails on right poses too (fr1/xyz every 10th: RMS 1.5-2.3), which are then degraded, not
   // ok. false: the features holding suffice, as before.
   bool confirm_features = true;
+  // ... and for this many frames after the last frame tracked ok, while the frame before was not
+  // ok, the check is against that last ok frame instead of the last one, even where dense from
+  // the motion model held: a step from an unconfirmed pose confirms nothing. Longer gaps fail
+  // on fast motion whatever the pose (fr1/desk: whitened RMS 2-2.8 beyond three frames).
+  int confirm_window_frames = 3;
 };
 
 struct TrackerParams {
