@@ -476,7 +476,11 @@ std::optional<SE3> Tracker::Impl::confirm_features(const RgbdPyramid* pyramid,
   if (!to_anchor && !has_last_pyramid_) return std::nullopt;
   const RgbdPyramid& reference = to_anchor ? anchor_pyramid_ : last_pyramid_;
   const SE3 T_w_ref = to_anchor ? anchor_T_wc_ : last_->T_wc;
-  *result = align_dense(reference, *pyramid, T_w_ref.inverse() * T_wc_features, params_.dense);
+  // Its own residual limit (QualityParams::confirm_max_rms): the agreement with the features
+  // decides, not the fit alone.
+  DenseParams check = params_.dense;
+  check.max_whitened_rms = params_.quality.confirm_max_rms;
+  *result = align_dense(reference, *pyramid, T_w_ref.inverse() * T_wc_features, check);
   if (!result->ok) return std::nullopt;
   return T_w_ref * result->T_ref_cur;
 }

@@ -52,15 +52,21 @@ QualityVerdict assess_quality(const QualityEvidence& e, const QualityParams& p) 
     if (e.spread < p.min_spread) q.reasons |= r::kPoorSpread;
     if (e.depth_inliers < p.ok_depth_inliers) q.reasons |= r::kNoDepth;
   }
+  // A check of the features' pose (dense_from_features) has its own limits: a looser fit, since
+  // the fast or wide steps where it runs fit worse whatever the pose, and a tighter agreement.
+  const bool check = e.dense_from_features;
+  const double max_rms = check ? p.confirm_max_rms : p.dense_max_rms;
   if (dense) {
     if (!e.dense_ok) {
       q.reasons |= r::kDenseFailed;
-    } else if (e.dense_rms > p.dense_max_rms || e.dense_inlier_ratio < p.dense_min_inlier_ratio) {
+    } else if (e.dense_rms > max_rms || e.dense_inlier_ratio < p.dense_min_inlier_ratio) {
       q.reasons |= r::kDenseResidual;
     }
   }
-  const bool disagree = e.compared && (e.disagreement_m > p.max_disagreement_m ||
-                                       e.disagreement_deg > p.max_disagreement_deg);
+  const double max_m = check ? p.confirm_max_disagreement_m : p.max_disagreement_m;
+  const double max_deg = check ? p.confirm_max_disagreement_deg : p.max_disagreement_deg;
+  const bool disagree =
+      e.compared && (e.disagreement_m > max_m || e.disagreement_deg > max_deg);
   if (disagree) q.reasons |= r::kDisagreement;
 
   const bool features_hold =

@@ -112,7 +112,9 @@ TEST_F(DeskClip, TheBlurredFrameIsNotOkAndTheStatesFileSaysWhatTheTrackerSaid) {
   const TrackResult& blurred = results[39 - 30];
   EXPECT_TRUE(dqo::tracking::has_pose(blurred.state));
   EXPECT_NE(blurred.state, TrackingState::kOk) << "a pose 3-4.5 cm off its neighbours reported ok";
-  EXPECT_NE(blurred.quality.reasons & reason::kDenseFailed, 0u);
+  // Dense alignment from the features' pose failed to fit, or fitted 3-4 cm away from them.
+  EXPECT_NE(blurred.quality.reasons & (reason::kDenseFailed | reason::kDisagreement), 0u)
+      << dqo::tracking::reasons_to_string(blurred.quality.reasons);
   // Its step from the frame before against the ground truth's: the reason it must not be ok.
   const dqo::SE3 step = results[8].T_wc.inverse() * blurred.T_wc;
   const dqo::SE3 step_gt = frames_[8].T_wc.inverse() * frames_[9].T_wc;

@@ -64,9 +64,26 @@ TEST(TrackingQuality, FeaturesThatDenseFromTheirOwnPoseCannotFitAreDegraded) {
   QualityParams off;
   off.confirm_features = false;
   EXPECT_EQ(assess_quality(e, off).state, TrackingState::kOk);
-  // Confirmed: ok.
+  // Confirmed: ok, with the check's looser fit (fast steps fit worse whatever the pose)...
   e = good();
   e.dense_from_features = true;
+  e.dense_rms = 1.9;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
+  // ... but its tighter agreement: frame 39 of fr1/desk, 4 cm from the features' pose.
+  e.disagreement_m = 0.04;
+  v = assess_quality(e, QualityParams{});
+  EXPECT_EQ(v.state, TrackingState::kDegraded);
+  EXPECT_EQ(v.quality.reasons, reason::kDisagreement);
+  e.disagreement_m = 0.01;
+  e.disagreement_deg = 2.0;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kDegraded);
+  // The same fit from the motion model's guess is too poor to count (dense_max_rms 1.5), and then
+  // no evidence against the features either.
+  e = good();
+  e.dense_rms = 1.9;
+  e.disagreement_m = 0.04;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kDegraded);
+  e.disagreement_m = 0.01;
   EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
 }
 

@@ -141,17 +141,21 @@ struct QualityParams {
   double max_disagreement_deg = 2.0;
   // Where the features give the pose alone (depth captured apart from the colour) and dense
   // alignment from the motion model failed: align again from the features' pose (to the last
-  // frame) and call the frame ok only if that converges (DenseParams' tests) and agrees. On
+  // frame) and call the frame ok only if that converges with a whitened RMS of at most
+  // confirm_max_rms and lands within confirm_max_disagreement_m / _deg of the features. On
   // fr1/desk the features alone were 5-7 cm off, with 200+ inliers, on motion-blurred frames
-  // that dense alignment could not fit (whitened RMS 1.9). Its cost: at wide baselines the check
-  // fails on right poses too (fr1/xyz every 10th: RMS 1.5-2.3), which are then degraded, not
-  // ok. false: the features holding suffice, as before.
+  // (the check there: RMS 1.9-2.3, or 4 cm or 2 degrees apart). The limits are calibrated on
+  // the shared fr1 sequences: right poses fit at 1.4-2.0 (wide baselines up to 2.3) and agree
+  // within 1.5 cm and 1 degree mostly. false: the features holding suffice, as before.
   bool confirm_features = true;
   // ... and for this many frames after the last frame tracked ok, while the frame before was not
   // ok, the check is against that last ok frame instead of the last one, even where dense from
   // the motion model held: a step from an unconfirmed pose confirms nothing. Longer gaps fail
   // on fast motion whatever the pose (fr1/desk: whitened RMS 2-2.8 beyond three frames).
   int confirm_window_frames = 3;
+  double confirm_max_rms = 2.0;
+  double confirm_max_disagreement_m = 0.025;
+  double confirm_max_disagreement_deg = 1.5;
 };
 
 struct TrackerParams {
