@@ -217,10 +217,10 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
   SE3 T_wc_dense = prior ? prior->T_w_ref * prior->T_ref_cur : SE3();
   bool dense_pose = prior.has_value();
   // Features alone (asynchronous depth) with nothing to confirm them: dense alignment from their
-  // pose, as evidence only (QualityParams::confirm_features).
-  // Soon after a frame that was not ok, against the last ok one (the anchor) instead, whether dense
-  // from the motion model held or not: held, it confirms a step from a pose nothing confirmed (on
-  // fr1/desk the frame after two blurred ones, its features 5.3 cm off and consistent with them).
+  // pose, as evidence only (QualityParams::confirm_features). Soon after a frame that was not ok,
+  // against the last ok one (the anchor) instead, whether dense from the motion model held or not:
+  // held, it only confirms a step from a pose nothing confirmed (on fr1/desk the frame after two
+  // blurred ones: its features 5.3 cm off, consistent with theirs).
   const bool after_doubt = reported_state_ != TrackingState::kOk && has_anchor_ &&
                            frame->number <= anchor_frame_ + static_cast<uint64_t>(std::max(
                                                                 0, params_.quality.confirm_window_frames));
