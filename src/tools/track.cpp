@@ -4,13 +4,14 @@
 // tracking time per frame, the lost frames and, where the dataset has ground truth, the ATE.
 //
 //   dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]
-//             [--camera camera.yaml]
+//             [--camera camera.yaml] [--states states.txt]
 // Images with lens distortion (camera.yaml's distortion_model and distortion) are undistorted
 // first, as tracking_node does with a CameraInfo.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <future>
 #include <map>
 #include <memory>
@@ -22,6 +23,7 @@
 #include "dqo_map/common/tum_trajectory.h"
 #include "dqo_map/eval/ate.h"
 #include "dqo_map/io/dataset_reader.h"
+#include "dqo_map/tracking/frame_states.h"
 #include "dqo_map/tracking/params_yaml.h"
 #include "dqo_map/tracking/rectified_frame_source.h"
 #include "dqo_map/tracking/tracking_session.h"
@@ -32,7 +34,7 @@ using dqo::median;
 
 constexpr char kUsage[] =
     "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]\n"
-    "                 [--camera camera.yaml] [--verbose]\n"
+    "                 [--camera camera.yaml] [--states states.txt] [--verbose]\n"
     "  DATASET_DIR        own format (camera.yaml, rgb/), TUM RGB-D (rgb.txt, depth.txt) or Replica\n"
     "  --out traj.txt     the estimated trajectory, TUM format (T_world_camera of tracked frames)\n"
     "  --config FILE      tracking parameters (default: the built-in ones, as config/tracking.yaml)\n"
@@ -40,6 +42,8 @@ constexpr char kUsage[] =
     "  --every K          track every K-th of them (frames 0, K, 2K, ...): larger baselines\n"
     "  --camera FILE      a TUM sequence's intrinsics and distortion from FILE, not its camera.yaml\n"
     "                     (e.g. config/cameras/tum_fr1.yaml)\n"
+    "  --states FILE      each tracked frame's state, reasons and evidence, one line per frame\n"
+    "                     (lost ones too; format: include/dqo_map/tracking/frame_states.h)\n"
     "  --verbose          one line per frame on stderr: state, its evidence and reasons\n"
     "Prints the frames per state (ok, degraded, lost) and why frames were not ok. The trajectory\n"
     "holds the ok and degraded frames (lost frames have no pose).\n";
@@ -49,6 +53,7 @@ struct Options {
   std::string out;
   std::string config;
   std::string camera;
+  std::string states;
   int frames = -1;
   int every = 1;
   bool verbose = false;
@@ -73,12 +78,13 @@ int main(int argc, char** argv) {
     } else if (a == "--verbose") {
       o.verbose = true;
     } else if (a == "--out" || a == "--config" || a == "--frames" || a == "--every" ||
-               a == "--camera") {
+               a == "--camera" || a == "--states") {
       const char* v = value();
       if (!v) return usage_error(a + " needs a value");
       if (a == "--out") o.out = v;
       if (a == "--config") o.config = v;
       if (a == "--camera") o.camera = v;
+      if (a == "--states") o.states = v;
       if (a == "--frames") {
         char* end = nullptr;
         const long n = std::strtol(v, &end, 10);
@@ -117,6 +123,15 @@ int main(int argc, char** argv) {
   if (!std::filesystem::is_directory(out_dir)) {
     std::fprintf(stderr, "dqo_track: the folder of --out (%s) does not exist\n", out_dir.c_str());
     return 1;
+  }
+  std::ofstream states;
+  if (!o.states.empty()) {
+    states.open(o.states);
+    if (!states) {
+      std::fprintf(stderr, "dqo_track: cannot write --states %s\n", o.states.c_str());
+      return 1;
+    }
+    states << dqo::tracking::frame_states_header() << '\n';
   }
   dqo::DatasetReaderParams reader_params;
   reader_params.load_meshes = false;
@@ -187,6 +202,7 @@ int main(int argc, char** argv) {
                    r.time_jump);
     }
     ms.push_back(r.track.milliseconds);
+    if (states.is_open()) states << dqo::tracking::format_frame_state(frame->timestamp, r.track) << '\n';
     if (r.track.relocalised) ++relocalised;
     switch (r.track.state) {
       case dqo::tracking::TrackingState::kOk:
@@ -224,6 +240,13 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
     return 1;
   }
+  if (states.is_open()) {
+    states.close();
+    if (!states) {
+      std::fprintf(stderr, "dqo_track: writing --states %s failed\n", o.states.c_str());
+      return 1;
+    }
+  }
   const dqo::tracking::Tracker* tracker = session.tracker();
   std::printf("frames: %d (tracked %zu, lost %d, not initialised %d, skipped %d)\n", count,
               estimate.size(), lost, not_initialised, skipped);
@@ -239,6 +262,7 @@ int main(int argc, char** argv) {
   std::printf("local_ba_runs: %llu\n",
               static_cast<unsigned long long>(tracker ? tracker->local_ba_runs() : 0));
   std::printf("wrote: %s\n", o.out.c_str());
+  if (!o.states.empty()) std::printf("wrote: %s\n", o.states.c_str());
   if (ground_truth.size() >= 3 && estimate.size() >= 3) {
     const auto ate = dqo::eval::compute_ate(estimate, ground_truth, dqo::eval::AteParams{}, &error);
     if (ate) {

@@ -115,6 +115,7 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
       // The chain of dense references breaks here: keep the last good one (realign()).
       std::swap(anchor_pyramid_, last_pyramid_);
       anchor_T_wc_ = T_wc_previous;
+      anchor_frame_ = frame.number - 1;
       has_anchor_ = true;
       anchor_odometry_covariance_ = odometry_covariance_previous;
       anchor_odometry_valid_ = odometry_valid_previous;
@@ -213,9 +214,34 @@ TrackResult Tracker::Impl::track_frame(TrackedFrame* frame, const RgbdPyramid* p
   e.dense_ok = prior.has_value();
   e.dense_rms = dense.whitened_rms;
   e.dense_inlier_ratio = dense.inlier_ratio;
-  const SE3 T_wc_dense = prior ? prior->T_w_ref * prior->T_ref_cur : SE3();
+  SE3 T_wc_dense = prior ? prior->T_w_ref * prior->T_ref_cur : SE3();
+  bool dense_pose = prior.has_value();
+  // Features alone (asynchronous depth) with nothing to confirm them: dense alignment from their
+  // pose, as evidence only (QualityParams::confirm_features). Soon after a frame that was not ok,
+  // against the last ok one (the anchor) instead, whether dense from the motion model held or not:
+  // held, it only confirms a step from a pose nothing confirmed (on fr1/desk the frame after two
+  // blurred ones: its features 5.3 cm off, consistent with theirs).
+  const bool after_doubt = reported_state_ != TrackingState::kOk && has_anchor_ &&
+                           frame->number <= anchor_frame_ + static_cast<uint64_t>(std::max(
+                                                                0, params_.quality.confirm_window_frames));
+  if (features.ok && (!prior || after_doubt) && depth_asynchronous_ &&
+      params_.quality.confirm_features) {
+    DenseResult check;
+    e.dense_tried = true;
+    e.dense_from_features = true;
+    e.dense_ok = false;
+    if (const auto T_wc_check = confirm_features(pyramid, features.T_wc, after_doubt, &check)) {
+      e.dense_ok = true;
+      T_wc_dense = *T_wc_check;
+      dense_pose = true;
+    } else {
+      dense_pose = false;
+    }
+    e.dense_rms = check.whitened_rms;
+    e.dense_inlier_ratio = check.inlier_ratio;
+  }
   auto compare = [&](const SE3& T_wc_features) {
-    if (!prior) return;
+    if (!dense_pose) return;
     const SE3 delta = T_wc_dense.inverse() * T_wc_features;
     e.compared = true;
     e.disagreement_m = delta.translation().norm();
@@ -436,6 +462,27 @@ std::optional<DensePrior> Tracker::Impl::realign(const RgbdPyramid* pyramid,
   prior.T_ref_cur = result->T_ref_cur;
   prior.information = params_.pose.dense_prior_weight * result->information;
   return prior;
+}
+
+std::optional<SE3> Tracker::Impl::confirm_features(const RgbdPyramid* pyramid,
+                                                   const SE3& T_wc_features, bool to_anchor,
+                                                   DenseResult* result) const {
+  // To the last frame, whatever its state, unless told to the anchor: against the last frame
+  // tracked ok every time, a gap of a few fast frames already fails on fr1/desk (whitened RMS
+  // 2-2.8) and every frame after one unconfirmed frame stayed degraded to the end
+  // (QualityParams::confirm_window_frames bounds it).
+  if (pyramid == nullptr || !last_) return std::nullopt;
+  if (to_anchor && !has_anchor_) return std::nullopt;
+  if (!to_anchor && !has_last_pyramid_) return std::nullopt;
+  const RgbdPyramid& reference = to_anchor ? anchor_pyramid_ : last_pyramid_;
+  const SE3 T_w_ref = to_anchor ? anchor_T_wc_ : last_->T_wc;
+  // Its own residual limit (QualityParams::confirm_max_rms): the agreement with the features
+  // decides, not the fit alone.
+  DenseParams check = params_.dense;
+  check.max_whitened_rms = params_.quality.confirm_max_rms;
+  *result = align_dense(reference, *pyramid, T_w_ref.inverse() * T_wc_features, check);
+  if (!result->ok) return std::nullopt;
+  return T_w_ref * result->T_ref_cur;
 }
 
 bool Tracker::Impl::fuse_realigned(TrackedFrame* frame, const RgbdPyramid* pyramid, SE3* T_wc,

@@ -74,6 +74,8 @@ struct Tracker::Impl {
   std::optional<DensePrior> align_to_last(const RgbdPyramid* pyramid, DenseResult* dense);
   std::optional<DensePrior> realign(const RgbdPyramid* pyramid, const SE3& T_wc_guess,
                                     DenseResult* dense, bool* to_last) const;
+  std::optional<SE3> confirm_features(const RgbdPyramid* pyramid, const SE3& T_wc_features,
+                                      bool to_anchor, DenseResult* result) const;
   bool fuse_realigned(TrackedFrame* frame, const RgbdPyramid* pyramid, SE3* T_wc, int* inliers,
                       DenseResult* dense, std::optional<DensePrior>* prior, bool* to_last);
   FeatureOutcome track_features(TrackedFrame* frame, const DensePrior* prior, const SE3& T_wc_mm);
@@ -138,6 +140,7 @@ struct Tracker::Impl {
   RgbdPyramid anchor_pyramid_;
   SE3 anchor_T_wc_;
   bool has_anchor_ = false;
+  uint64_t anchor_frame_ = 0;  // its frame number
   // The dense odometry from the last keyframe to the anchor (see odometry_covariance_ below), so
   // that a frame aligned to the anchor continues it: the keyframe made there is tied to the map
   // before the break in bundle adjustment, not by its features alone.

@@ -59,7 +59,13 @@ bool Tracker::Impl::need_keyframe(const TrackedFrame& frame, int inliers,
   const bool c1b = since >= static_cast<uint64_t>(p.min_frames) && mapping_idle;
   const bool c1c = inliers < 0.25 * reference_tracked || need_close;
   const bool c2 = (inliers < ratio * reference_tracked || need_close) && inliers > 15;
-  return (c1a || c1b || c1c) && c2;
+  // Far from the last keyframe (wide baselines: every 10th frame of a hand-held sweep moves
+  // 15-30 cm): a keyframe whatever the mapping's state, or the next frame finds nothing of the map
+  // in view to match against.
+  const SE3 moved = last_kf->T_wc.inverse() * frame.T_wc;
+  const bool c1d = moved.translation().norm() > p.far_translation_m ||
+                   rotation_angle_deg(moved) > p.far_rotation_deg;
+  return (c1a || c1b || c1c || c1d) && c2;
 }
 
 void Tracker::Impl::create_keyframe(TrackedFrame* frame) {

@@ -52,15 +52,21 @@ QualityVerdict assess_quality(const QualityEvidence& e, const QualityParams& p) 
     if (e.spread < p.min_spread) q.reasons |= r::kPoorSpread;
     if (e.depth_inliers < p.ok_depth_inliers) q.reasons |= r::kNoDepth;
   }
+  // A check of the features' pose (dense_from_features) has its own limits: a looser fit, since
+  // the fast or wide steps where it runs fit worse whatever the pose, and a tighter agreement.
+  const bool check = e.dense_from_features;
+  const double max_rms = check ? p.confirm_max_rms : p.dense_max_rms;
   if (dense) {
     if (!e.dense_ok) {
       q.reasons |= r::kDenseFailed;
-    } else if (e.dense_rms > p.dense_max_rms || e.dense_inlier_ratio < p.dense_min_inlier_ratio) {
+    } else if (e.dense_rms > max_rms || e.dense_inlier_ratio < p.dense_min_inlier_ratio) {
       q.reasons |= r::kDenseResidual;
     }
   }
-  const bool disagree = e.compared && (e.disagreement_m > p.max_disagreement_m ||
-                                       e.disagreement_deg > p.max_disagreement_deg);
+  const double max_m = check ? p.confirm_max_disagreement_m : p.max_disagreement_m;
+  const double max_deg = check ? p.confirm_max_disagreement_deg : p.max_disagreement_deg;
+  const bool disagree =
+      e.compared && (e.disagreement_m > max_m || e.disagreement_deg > max_deg);
   if (disagree) q.reasons |= r::kDisagreement;
 
   const bool features_hold =
@@ -71,9 +77,16 @@ QualityVerdict assess_quality(const QualityEvidence& e, const QualityParams& p) 
   if (disagree) {
     // Two sources contradict each other: only features that hold by themselves are believed.
     v.state = features_hold ? TrackingState::kDegraded : TrackingState::kLost;
+  } else if (features_hold && dense && !dense_holds && e.dense_from_features &&
+             p.confirm_features) {
+    // Dense alignment from the features' own pose failed or fit poorly: the features are
+    // unconfirmed. On fr1/desk these are the motion-blurred frames, where many inliers still
+    // agree on a pose 3-5 cm off (the blur moves every keypoint alike).
+    v.state = TrackingState::kDegraded;
   } else if (features_hold) {
-    // Enough well spread inliers: dense alignment that failed to converge (a large step beyond
-    // its basin, missing depth) or fit poorly is no evidence against them; only contradiction is.
+    // Enough well spread inliers: dense alignment from the motion model that failed to converge
+    // (a large step beyond its basin, missing depth) or fit poorly is no evidence against them;
+    // only contradiction is.
     v.state = TrackingState::kOk;
   } else if (dense_holds && !features) {
     v.state = TrackingState::kOk;  // dense alone by configuration, and it holds

@@ -23,6 +23,9 @@ struct QualityEvidence {
   bool dense_ok = false;
   double dense_rms = 0.0;
   double dense_inlier_ratio = 0.0;
+  // The dense alignment above started from the features' own pose (a check of it, not a second
+  // estimate from the motion model): where it fails, nothing confirms the features.
+  bool dense_from_features = false;
   bool compared = false;        // both gave a pose: the disagreement below is measured
   double disagreement_m = 0.0;
   double disagreement_deg = 0.0;

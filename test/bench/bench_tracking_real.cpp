@@ -1,6 +1,8 @@
 // bench_tracking --real: the tracker on real data and under injected faults (issue 14, item 5).
 //   - TUM fr1/xyz (../shared/data/tum_fr1_xyz, undistorted with config/cameras/tum_fr1.yaml) at
 //     every frame and at every 5th, 10th and 20th;
+//   - TUM fr1/desk, 150 frames of fast motion (../shared/data/tum_fr1_desk_330, the same camera)
+//     at every frame and at every 10th (issue 25);
 //   - faults injected into TUM fr1/xyz and into the synthetic tabletop (sensor noise on): a covered
 //     lens for 1 s (black image, no depth), depth dropped for 1 s, a 30 degree jump between two
 //     frames (tabletop: the frames of the turn in between left out), a frame repeated (the same
@@ -82,8 +84,8 @@ double angle_deg(const SE3& T) {
   return 2.0 * std::acos(std::min(1.0, std::abs(T.quaternion().w()))) * 180.0 / M_PI;
 }
 
-std::optional<Sequence> load_tum(const std::string& dir, const std::string& camera_file,
-                                 std::string* error) {
+std::optional<Sequence> load_tum(const std::string& dir, const std::string& name,
+                                 const std::string& camera_file, std::string* error) {
   dqo::DatasetReaderParams params;
   params.load_meshes = false;
   params.tum.camera_file = camera_file;
@@ -92,7 +94,7 @@ std::optional<Sequence> load_tum(const std::string& dir, const std::string& came
   const auto source = dqo::tracking::rectified(reader, error);
   if (!source) return std::nullopt;
   Sequence s;
-  s.name = "tum_fr1_xyz";
+  s.name = name;
   s.camera = source->info().camera;
   for (int i = 0; i < source->num_frames(); ++i) {
     auto f = source->read_frame(i, error);
@@ -309,7 +311,8 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
   if (!std::filesystem::exists(tum_dir + "/rgb.txt")) {
     std::printf("(TUM fr1/xyz not found at %s: real-data runs skipped)\n", tum_dir.c_str());
   } else {
-    const auto tum = load_tum(tum_dir, source_dir + "/config/cameras/tum_fr1.yaml", &error);
+    const auto tum =
+        load_tum(tum_dir, "tum_fr1_xyz", source_dir + "/config/cameras/tum_fr1.yaml", &error);
     if (!tum) {
       std::fprintf(stderr, "bench_tracking: %s\n", error.c_str());
       return 1;
@@ -328,6 +331,27 @@ int run_real_benchmark(const std::string& source_dir, const RealOptions& options
       print(s);
     }
     run_faults(*tum, {"covered", "no depth", "repeated"});
+  }
+  // Fast hand-held motion (issue 25): motion blur, 2-3 cm and 2-4 degrees per frame, 15-30 cm and
+  // 5-24 degrees at every 10th.
+  const std::string desk_dir =
+      (std::filesystem::canonical(source_dir) / "../shared/data/tum_fr1_desk_330").lexically_normal().string();
+  if (!options.only.empty()) {
+    // one fault only: the desk has no faults
+  } else if (!std::filesystem::exists(desk_dir + "/rgb.txt")) {
+    std::printf("(TUM fr1/desk not found at %s: its runs skipped)\n", desk_dir.c_str());
+  } else {
+    const auto desk = load_tum(desk_dir, "tum_fr1_desk_330",
+                               source_dir + "/config/cameras/tum_fr1.yaml", &error);
+    if (!desk) {
+      std::fprintf(stderr, "bench_tracking: %s\n", error.c_str());
+      return 1;
+    }
+    for (const int k : {1, 10}) {
+      const Stats s = run(every_kth(*desk, k), Fault{}, options.verbose);
+      zero_wrong_ok = zero_wrong_ok && s.wrong_ok == 0;
+      print(s);
+    }
   }
   const auto tabletop =
       load_scene(source_dir + "/config/scenes/tabletop.yaml", options.synthetic_frames, &error);

@@ -45,6 +45,48 @@ TEST(TrackingQuality, StrongFeaturesAreOkWhereDenseFailedToConverge) {
   EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
 }
 
+TEST(TrackingQuality, FeaturesThatDenseFromTheirOwnPoseCannotFitAreDegraded) {
+  // The motion-blurred frames of fr1/desk: 231 inliers over the image, dense alignment started
+  // at the features' pose ends at a whitened RMS of 1.9 (failed).
+  QualityEvidence e = good();
+  e.compared = false;
+  e.dense_ok = false;
+  e.dense_rms = 1.9;
+  e.dense_from_features = true;
+  auto v = assess_quality(e, QualityParams{});
+  EXPECT_EQ(v.state, TrackingState::kDegraded);
+  EXPECT_EQ(v.quality.reasons, reason::kDenseFailed);
+  // The same failure from the motion model's guess says nothing about the features.
+  e.dense_from_features = false;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
+  // Switched off: the features holding suffice.
+  e.dense_from_features = true;
+  QualityParams off;
+  off.confirm_features = false;
+  EXPECT_EQ(assess_quality(e, off).state, TrackingState::kOk);
+  // Confirmed: ok, with the check's looser fit (fast steps fit worse whatever the pose)...
+  e = good();
+  e.dense_from_features = true;
+  e.dense_rms = 1.9;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
+  // ... but its tighter agreement: frame 39 of fr1/desk, 4 cm from the features' pose.
+  e.disagreement_m = 0.04;
+  v = assess_quality(e, QualityParams{});
+  EXPECT_EQ(v.state, TrackingState::kDegraded);
+  EXPECT_EQ(v.quality.reasons, reason::kDisagreement);
+  e.disagreement_m = 0.01;
+  e.disagreement_deg = 2.0;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kDegraded);
+  // The same fit from the motion model's guess is too poor to count (dense_max_rms 1.5), and then
+  // no evidence against the features either.
+  e = good();
+  e.dense_rms = 1.9;
+  e.disagreement_m = 0.04;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kDegraded);
+  e.disagreement_m = 0.01;
+  EXPECT_EQ(assess_quality(e, QualityParams{}).state, TrackingState::kOk);
+}
+
 TEST(TrackingQuality, DisagreementDegradesStrongFeaturesAndLosesWeakOnes) {
   QualityEvidence e = good();
   e.disagreement_m = 0.10;  // 10 cm apart
