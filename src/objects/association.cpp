@@ -119,7 +119,10 @@ AssociationResult associate(const std::vector<AssociationTrack>& tracks,
             if (!use_iou) continue;  // qd alone has nothing to go on
           } else {
             similarity = quadric_similarity(*observed, object.quadric, params.distance);
-            if (!(similarity >= params.min_similarity)) continue;
+            // A projection that covers the detection this well is the object, whatever the fine
+            // step's quadric says: that quadric, from a candidate's few views or one view's depth,
+            // is what is unreliable then (a TV seen obliquely, its depth ellipsoid on the wall).
+            if (!(similarity >= params.min_similarity) && !(use_iou && overlap >= params.accept_iou)) continue;
           }
         }
       }

@@ -82,6 +82,7 @@ Section schema(ObjectMapperParams& p) {
                           {"strategy", make_choice(&a.strategy, parse_association_strategy, to_string, "iou, qd, iou+qd")},
                           {"min_iou", &a.min_iou, 0.0, 1.0},
                           {"min_similarity", &a.min_similarity, 0.0, 1.0},
+                          {"accept_iou", &a.accept_iou, 0.0, 1.01},
                           {"max_init_views", &a.max_init_views, 3, 1000},
                           {"fine_quadric", make_choice(&a.fine_quadric, parse_fine_quadric, to_string, "boxes, depth")},
                           {"require_same_class", &a.require_same_class},
