@@ -358,6 +358,7 @@ TEST_F(TrackingFaultsTest, BadInputIsReportedAndRecovered) {
   };
   check_fault(Phase::kNoDepth, "depth missing for 1 s", 10, false);
   check_fault(Phase::kCovered, "covered for 3 s", 10, false);
+  EXPECT_TRUE(rec_.log.logged("relocalised")) << "no log line about relocalising after the cover\n" << dump;
   check_fault(Phase::kJump, "a jump of 1 m", 7, true);
   // Away from the map: reported at once; relocalising needs a place the map holds, and the tracker
   // does not start a second map (issue 25: not done), so it stays lost: no recovery is asked here,
