@@ -85,7 +85,7 @@ std::string to_yaml(const XmlRpc::XmlRpcValue& value) {
 std::optional<tracking::TrackingConfig> read_tracking_config(const ros::NodeHandle& private_nh,
                                                              std::string* error) {
   std::string text = "{";
-  for (const char* section : {"tracker", "mapping_keyframes"}) {
+  for (const char* section : {"tracker", "mapping_keyframes", "stream"}) {
     XmlRpc::XmlRpcValue value;
     if (!private_nh.getParam(section, value)) continue;
     if (text.size() > 1) text += ", ";

@@ -11,9 +11,12 @@
 // (its first camera's optical frame) goes into this map by one fixed transform, T_map_tracker.
 //
 // Bad input never stops the node: a frame it cannot use is skipped with a throttled log line that
-// says why (unsupported encoding, sizes that disagree, no depth, a camera it cannot undistort);
-// missing topics are reported from a timer; time going backwards (a looping bag) resets tracking and
-// clears the tf buffer (replay_tf_listener.h: no TF_REPEATED_DATA flood).
+// says why (unsupported encoding, sizes that disagree, no depth before tracking started, a camera it
+// cannot undistort); a frame without depth once tracking goes to the tracker, which reports it
+// degraded or lost with its reasons; a frame out of order (stamped before the last one by at most
+// stream/out_of_order_s) is skipped; missing topics are reported from a timer; time going further
+// backwards (a looping bag) resets tracking and clears the tf buffer (replay_tf_listener.h: no
+// TF_REPEATED_DATA flood).
 #include <algorithm>
 #include <deque>
 #include <map>
@@ -185,7 +188,7 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   const std::set<std::string> known = {
       "rgb_topic",  "depth_topic",     "camera_info_topic", "queue_size", "sync_slop",  "pose_source",
       "camera_frame", "publish_tf",    "min_valid_depth",   "path_max_poses", "path_period", "map_frame",
-      "odom_frame", "base_frame",      "tf_timeout",        "root_wait",  "tracker",    "mapping_keyframes",
+      "odom_frame", "base_frame",      "tf_timeout",        "root_wait",  "tracker",    "mapping_keyframes", "stream",
       "map_level",  "imu_samples",     "imu_wait",          "level_timeout", "floor_max_tilt_deg"};
   for (const std::string& name : unknown_private_params(pnh_, known)) {
     ROS_WARN("tracking: ignoring unknown parameter %s/%s", pnh_.getNamespace().c_str(), name.c_str());
@@ -425,11 +428,16 @@ void TrackingNode::track_frame(const ImageConstPtr& rgb_msg, const ImageConstPtr
     if (!throttled("rectify")) ROS_ERROR("tracking: %s (camera_info disagrees with the images): frame skipped", error.c_str());
     return;
   }
+  // Without depth nothing can start (the map's levelling, the tracker's first frame, a keyframe
+  // from tf poses); once tracking, the tracker takes the frame and says what it makes of it
+  // (degraded on colour alone, or lost: a covered lens), so that the state changes at once.
   const size_t valid = count_valid_depth(depth);
   if (static_cast<double>(valid) < p_.min_valid_depth * depth.data.size() || valid == 0) {
-    if (!throttled("depth")) ROS_WARN("tracking: only %zu of %zu pixels have depth (0, NaN or missing): frame skipped",
-                      valid, depth.data.size());
-    return;
+    const bool tracking = p_.pose_source == "tracker" && R_map_body_ &&
+                          session_->state() != TrackingState::kNotInitialised;
+    if (!throttled("depth")) ROS_WARN("tracking: only %zu of %zu pixels have depth (0, NaN or missing): %s", valid,
+                                      depth.data.size(), tracking ? "tracked without it" : "frame skipped");
+    if (!tracking) return;
   }
 
   tracking::SessionResult r;
@@ -449,6 +457,11 @@ void TrackingNode::track_frame(const ImageConstPtr& rgb_msg, const ImageConstPtr
     // openni) is tracked on the colour's instant (PoseOptimiserParams::max_depth_gap_s).
     const tracking::RgbdInput input{stamp.toSec(), &rgb, &depth, depth_msg->header.stamp.toSec()};
     r = session_->track(undistorter_->camera(), input);
+  }
+  if (r.skipped == tracking::SessionResult::Skip::kOutOfOrder) {
+    if (!throttled("order")) ROS_WARN("tracking: frame at %.6f is out of order (%.3f s before the last one, "
+                                      "within stream/out_of_order_s): skipped", stamp.toSec(), r.time_jump);
+    return;
   }
   if (r.skipped != tracking::SessionResult::Skip::kNone) {
     ROS_DEBUG("tracking: frame at %.6f repeats the last stamp: skipped", stamp.toSec());
@@ -502,6 +515,8 @@ void TrackingNode::handle_result(const tracking::SessionResult& r, const std_msg
         if (r.previous_state == TrackingState::kLost) {
           ROS_INFO("tracking: relocalised at %.3f after %llu frames lost", stamp.toSec(),
                    static_cast<unsigned long long>(frames_ - lost_since_frame_));
+        } else if (r.previous_state == TrackingState::kDegraded) {
+          ROS_INFO("tracking: ok again at %.3f", stamp.toSec());
         } else {
           if (p_.pose_source == "tf") {
             ROS_INFO("tracking: first camera pose from tf at %.3f", stamp.toSec());

@@ -16,6 +16,7 @@ using config::Section;
 Section schema(TrackingConfig& c) {
   TrackerParams& t = c.tracker;
   KeyframeSelectorParams& k = c.mapping_keyframes;
+  StreamParams& st = c.stream;
   return Section{
       "",
       {},
@@ -141,6 +142,11 @@ Section schema(TrackingConfig& c) {
                       {"max_rotation_deg", &k.max_rotation_deg, 0.0, 360.0},
                       {"max_translation_m", &k.max_translation_m, 0.0, kInf},
                       {"max_frames", &k.max_frames, -1, 1000000},
+                  },
+                  {}},
+          Section{"stream",
+                  {
+                      {"out_of_order_s", &st.out_of_order_s, 0.0, kInf},
                   },
                   {}},
       }};

@@ -427,6 +427,10 @@ void Tracker::Impl::accumulate_odometry(const DensePrior* prior, const SE3& T_wc
 std::optional<DensePrior> Tracker::Impl::align_to_last(const RgbdPyramid* pyramid,
                                                        DenseResult* result) {
   if (pyramid == nullptr || !has_last_pyramid_ || !last_) return std::nullopt;
+  // A lost frame's pose is a guess (the motion model's): a step from it, however well aligned,
+  // would chain the guess on as a pose with evidence (a jump of 1 m: a frame lost, then the next
+  // ones ok 1 m off). Without this prior the frame is tracked on features or relocalised.
+  if (reported_state_ == TrackingState::kLost) return std::nullopt;
   *result = align_dense(last_pyramid_, *pyramid, has_velocity_ ? velocity_ : SE3(), params_.dense);
   const DenseResult& dense = *result;
   if (!dense.ok) return std::nullopt;

@@ -26,8 +26,12 @@ bool TrackingSession::admit(double timestamp, SessionResult* result) {
   result->previous_state = state_;
   if (last_timestamp_) {
     if (timestamp < *last_timestamp_) {
-      result->reset = true;
       result->time_jump = *last_timestamp_ - timestamp;
+      if (result->time_jump <= config_.stream.out_of_order_s) {
+        result->skipped = SessionResult::Skip::kOutOfOrder;
+        return false;
+      }
+      result->reset = true;
       reset();
     } else if (timestamp == *last_timestamp_) {
       result->skipped = SessionResult::Skip::kRepeatedTimestamp;

@@ -41,20 +41,34 @@ TEST(TrackingSession, KeyframesFromExternalPoses) {
 }
 
 TEST(TrackingSession, TimeGoingBackResetsAndIdsAreNotReused) {
-  TrackingSession session(TrackingConfig{});
+  TrackingConfig config;
+  config.stream.out_of_order_s = 1.0;
+  TrackingSession session(config);
   ASSERT_TRUE(session.add_pose(10.0, at_x(0.0)).keyframe_id);
-  EXPECT_FALSE(session.add_pose(10.1, at_x(0.01)).keyframe_id);
+  EXPECT_FALSE(session.add_pose(11.5, at_x(0.01)).keyframe_id);
 
   // The same stamp again: skipped, nothing else happens.
-  const SessionResult repeated = session.add_pose(10.1, at_x(5.0));
+  const SessionResult repeated = session.add_pose(11.5, at_x(5.0));
   EXPECT_EQ(repeated.skipped, SessionResult::Skip::kRepeatedTimestamp);
   EXPECT_FALSE(repeated.keyframe_id);
 
-  // A looping bag: back to the start. Reset, and the first frame after it is a keyframe with a
-  // new ID.
+  // A frame out of order (0.3 s before the last, within out_of_order_s): skipped, no reset; the
+  // next one in order goes on from the last.
+  const SessionResult late = session.add_pose(11.2, at_x(5.0));
+  EXPECT_EQ(late.skipped, SessionResult::Skip::kOutOfOrder);
+  EXPECT_FALSE(late.reset);
+  EXPECT_NEAR(late.time_jump, 0.3, 1e-12);
+  EXPECT_FALSE(late.keyframe_id);
+  const SessionResult next = session.add_pose(11.6, at_x(0.02));
+  EXPECT_EQ(next.skipped, SessionResult::Skip::kNone);
+  EXPECT_FALSE(next.reset);
+  EXPECT_FALSE(next.state_changed);
+
+  // A looping bag: back to the start (1.6 s, beyond out_of_order_s). Reset, and the first frame
+  // after it is a keyframe with a new ID.
   const SessionResult looped = session.add_pose(10.0, at_x(0.0));
   EXPECT_TRUE(looped.reset);
-  EXPECT_NEAR(looped.time_jump, 0.1, 1e-12);
+  EXPECT_NEAR(looped.time_jump, 1.6, 1e-12);
   ASSERT_TRUE(looped.keyframe_id);
   EXPECT_EQ(*looped.keyframe_id, 2u);
   EXPECT_FALSE(session.add_pose(10.1, at_x(0.01)).reset);

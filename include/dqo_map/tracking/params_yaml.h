@@ -7,6 +7,7 @@
 //   tracker:            # TrackerParams: use_features, use_dense, min_inliers_ok, frames_to_lost
 //     orb: {...}        #   and one map per stage: orb, dense, pose, keyframes, local_ba, reloc
 //   mapping_keyframes:  # KeyframeSelectorParams: max_rotation_deg, max_translation_m, max_frames
+//   stream:             # StreamParams (TrackingSession): out_of_order_s
 //
 // Strict: an unknown key, a key given twice, a value of the wrong type or out of range is an error
 // "SOURCE:LINE:COLUMN: message" naming the key's full path (tracker.orb.num_features), and nothing
@@ -21,9 +22,17 @@
 
 namespace dqo::tracking {
 
+// How TrackingSession treats a live stream's stamps.
+struct StreamParams {
+  // A frame stamped before the last one by at most this (seconds) came out of order (a driver or a
+  // network that reorders): it is skipped. Further back is a new run (a looping bag): a reset.
+  double out_of_order_s = 1.0;
+};
+
 struct TrackingConfig {
   TrackerParams tracker;
   KeyframeSelectorParams mapping_keyframes;
+  StreamParams stream;
 };
 
 // Reads a file; nullopt and *error ("FILE:LINE:COLUMN: ...") on any problem.

@@ -2,7 +2,8 @@
 // The tracking stage as tracking_node, dqo_track and the offline pipeline run it: a Tracker, the
 // mapping keyframe policy, and what a live stream needs around them:
 //   - time going backwards (a looping bag) resets the tracker and the keyframe policy; a repeated
-//     timestamp is skipped (the tracker needs increasing time);
+//     timestamp is skipped (the tracker needs increasing time), and so is a frame out of order (a
+//     stamp before the last one by at most StreamParams::out_of_order_s);
 //   - a change of camera (another resolution or intrinsics) starts a new tracker;
 //   - mapping keyframe IDs count up across resets and are never reused within a session.
 // With external poses (`pose_source: tf`, a robot's own SLAM) there is no tracker: add_pose() only
@@ -25,11 +26,11 @@
 namespace dqo::tracking {
 
 struct SessionResult {
-  enum class Skip { kNone, kRepeatedTimestamp };
-  Skip skipped = Skip::kNone;       // the frame was not tracked (nothing else below is set)
+  enum class Skip { kNone, kRepeatedTimestamp, kOutOfOrder };
+  Skip skipped = Skip::kNone;       // the frame was not tracked (nothing else below but time_jump is set)
   TrackResult track;                // the tracker's result; with external poses: kOk and T_wc
   bool reset = false;               // time went back: everything started over before this frame
-  double time_jump = 0.0;           // seconds back (positive) when reset
+  double time_jump = 0.0;           // seconds back (positive) when reset or skipped out of order
   bool new_camera = false;          // a new tracker was started for another camera
   TrackingState previous_state = TrackingState::kNotInitialised;
   bool state_changed = false;       // track.state differs from the previous frame's
