@@ -159,6 +159,7 @@ std::optional<BackPlane> find_back_plane(const Box2d& box, const std::vector<Eig
     size_t count = 0;
     for (const Eigen::Vector3d& p : ring) count += std::abs(n.dot(p) - d) <= tolerance(p);
     if (count > best_count) best_count = count, best_n = n, best_d = d;
+    if (5 * best_count >= 4 * ring.size()) break;  // four fifths of the ring: no larger plane is left
   }
   if (best_count < needed) return std::nullopt;
   // Least squares over the inliers.
