@@ -373,10 +373,9 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
       }
       if (params.surface.enabled) {
         rec.points = sample_box_points(rec.box, kf.camera, kf.depth, params.surface);
-        rec.stand_out = stand_out_share(rec.box, rec.points, kf.camera, kf.depth, params.surface);
-        if (params.surface.back_plane_max_angle_deg > 0.0) {
-          rec.back_plane = find_back_plane(rec.box, rec.points, kf.camera, kf.depth, params.surface);
-        }
+        const std::vector<Eigen::Vector3d> ring = ring_points(rec.box, kf.camera, kf.depth, params.surface);
+        rec.stand_out = stand_out_share(rec.points, ring, params.surface);
+        if (params.surface.back_plane_max_angle_deg > 0.0) rec.back_plane = find_back_plane(rec.points, ring, params.surface);
       }
       record.detections.push_back(std::move(rec));
     }

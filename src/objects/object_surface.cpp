@@ -63,27 +63,27 @@ std::array<Extent, 3> trimmed_extents(const std::vector<Eigen::Vector3d>& points
 
 double yaw_of(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
 
-// About 300 depth samples of the ring around `box` (the box grown by a quarter of its size on each
-// side, the box itself left out), camera frame.
-std::vector<Eigen::Vector3d> ring_points(const Box2d& box, const PinholeCamera& camera, const DepthView& depth,
-                                         const SurfaceParams& params) {
-  std::vector<Eigen::Vector3d> ring;
-  const double gx = std::max(8.0, 0.25 * box.width()), gy = std::max(8.0, 0.25 * box.height());
-  const double x0 = std::max(0.0, box.x_min - gx), y0 = std::max(0.0, box.y_min - gy);
-  const double x1 = std::min<double>(depth.width, box.x_max + gx), y1 = std::min<double>(depth.height, box.y_max + gy);
-  const double ring_area = (x1 - x0) * (y1 - y0) - box.area();
-  if (!(ring_area > 0.0)) return ring;
-  const double step = std::max(1.0, std::sqrt(ring_area / 300.0));
-  for (double v = y0 + 0.5 * step; v < y1; v += step) {
-    for (double u = x0 + 0.5 * step; u < x1; u += step) {
-      if (u >= box.x_min && u < box.x_max && v >= box.y_min && v < box.y_max) continue;
-      const int iu = static_cast<int>(u), iv = static_cast<int>(v);
-      const float z = depth.at(iu, iv);
-      if (!std::isfinite(z) || z < params.min_depth || z > params.max_depth) continue;
-      ring.push_back(camera.back_project(iu, iv, z));
-    }
-  }
-  return ring;
+// Depth noise, one-sided tolerance at depth z (a Kinect's σ ≈ 1.5 mm · z², about 3σ): planes
+// and offsets from them are judged against it (a floor 3 m away is no plane within 1.5 cm).
+double depth_noise(double z) { return 0.005 * z * z; }
+
+// The least-squares plane of `points` (at least 3): its mean, unit normal and rms distance.
+struct PlaneFit {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+  double rms = 0.0;
+};
+PlaneFit fit_plane(const std::vector<Eigen::Vector3d>& points) {
+  PlaneFit fit;
+  for (const Eigen::Vector3d& p : points) fit.mean += p;
+  fit.mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& p : points) cov += (p - fit.mean) * (p - fit.mean).transpose();
+  cov /= static_cast<double>(points.size());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  fit.n = eig.eigenvectors().col(0);
+  fit.rms = std::sqrt(std::max(0.0, eig.eigenvalues()(0)));
+  return fit;
 }
 
 }  // namespace
@@ -108,39 +108,46 @@ std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCa
   return out;
 }
 
-double stand_out_share(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c, const PinholeCamera& camera,
-                       const DepthView& depth, const SurfaceParams& params) {
-  if (depth.data == nullptr || !box.valid() || box_points_c.empty()) return std::nan("");
-  const std::vector<Eigen::Vector3d> ring = ring_points(box, camera, depth, params);
-  if (ring.size() < 30) return std::nan("");
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3d& p : ring) mean += p;
-  mean /= static_cast<double>(ring.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const Eigen::Vector3d& p : ring) cov += (p - mean) * (p - mean).transpose();
-  cov /= static_cast<double>(ring.size());
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  const Eigen::Vector3d n = eig.eigenvectors().col(0);
-  // Depth noise grows with the square of the depth (a Kinect's σ ≈ 1.5 mm · z²): both tolerances
-  // grow with it (a floor 3 m away is no plane within 1.5 cm, nor flat within 2).
-  const double noise = 0.005 * mean.z() * mean.z();
-  if (std::sqrt(std::max(0.0, eig.eigenvalues()(0))) > params.plane_tolerance + noise) return std::nan("");
+std::vector<Eigen::Vector3d> ring_points(const Box2d& box, const PinholeCamera& camera, const DepthView& depth,
+                                         const SurfaceParams& params) {
+  std::vector<Eigen::Vector3d> ring;
+  if (depth.data == nullptr || !box.valid()) return ring;
+  const double gx = std::max(8.0, 0.25 * box.width()), gy = std::max(8.0, 0.25 * box.height());
+  const double x0 = std::max(0.0, box.x_min - gx), y0 = std::max(0.0, box.y_min - gy);
+  const double x1 = std::min<double>(depth.width, box.x_max + gx), y1 = std::min<double>(depth.height, box.y_max + gy);
+  const double ring_area = (x1 - x0) * (y1 - y0) - box.area();
+  if (!(ring_area > 0.0)) return ring;
+  const double step = std::max(1.0, std::sqrt(ring_area / 300.0));
+  for (double v = y0 + 0.5 * step; v < y1; v += step) {
+    for (double u = x0 + 0.5 * step; u < x1; u += step) {
+      if (u >= box.x_min && u < box.x_max && v >= box.y_min && v < box.y_max) continue;
+      const int iu = static_cast<int>(u), iv = static_cast<int>(v);
+      const float z = depth.at(iu, iv);
+      if (!std::isfinite(z) || z < params.min_depth || z > params.max_depth) continue;
+      ring.push_back(camera.back_project(iu, iv, z));
+    }
+  }
+  return ring;
+}
+
+double stand_out_share(const std::vector<Eigen::Vector3f>& box_points_c, const std::vector<Eigen::Vector3d>& ring_c,
+                       const SurfaceParams& params) {
+  if (box_points_c.empty() || ring_c.size() < 30) return std::nan("");
+  const PlaneFit plane = fit_plane(ring_c);
+  if (plane.rms > params.plane_tolerance + depth_noise(plane.mean.z())) return std::nan("");
   int out = 0;
   for (const Eigen::Vector3f& p : box_points_c) {
-    const double z = p.z();
-    out += std::abs((p.cast<double>() - mean).dot(n)) > params.stand_out_distance + 0.005 * z * z;
+    out += std::abs((p.cast<double>() - plane.mean).dot(plane.n)) > params.stand_out_distance + depth_noise(p.z());
   }
   return static_cast<double>(out) / static_cast<double>(box_points_c.size());
 }
 
-std::optional<BackPlane> find_back_plane(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c,
-                                         const PinholeCamera& camera, const DepthView& depth,
-                                         const SurfaceParams& params) {
-  if (depth.data == nullptr || !box.valid() || box_points_c.size() < 10) return std::nullopt;
-  const std::vector<Eigen::Vector3d> ring = ring_points(box, camera, depth, params);
+std::optional<BackPlane> find_back_plane(const std::vector<Eigen::Vector3f>& box_points_c,
+                                         const std::vector<Eigen::Vector3d>& ring, const SurfaceParams& params) {
+  if (box_points_c.size() < 10) return std::nullopt;
   const size_t needed = std::max<size_t>(30, ring.size() / 3);
   if (ring.size() < needed) return std::nullopt;
-  auto tolerance = [&](const Eigen::Vector3d& p) { return params.plane_tolerance + 0.005 * p.z() * p.z(); };
+  auto tolerance = [&](const Eigen::Vector3d& p) { return params.plane_tolerance + depth_noise(p.z()); };
   // RANSAC over triples of ring samples, seeded: the same depth gives the same plane.
   std::mt19937 rng(7);
   std::uniform_int_distribution<size_t> pick(0, ring.size() - 1);
@@ -163,17 +170,14 @@ std::optional<BackPlane> find_back_plane(const Box2d& box, const std::vector<Eig
   }
   if (best_count < needed) return std::nullopt;
   // Least squares over the inliers.
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  std::vector<const Eigen::Vector3d*> inliers;
+  std::vector<Eigen::Vector3d> inliers;
   for (const Eigen::Vector3d& p : ring) {
-    if (std::abs(best_n.dot(p) - best_d) <= tolerance(p)) inliers.push_back(&p), mean += p;
+    if (std::abs(best_n.dot(p) - best_d) <= tolerance(p)) inliers.push_back(p);
   }
-  mean /= static_cast<double>(inliers.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const Eigen::Vector3d* p : inliers) cov += (*p - mean) * (*p - mean).transpose();
+  const PlaneFit fit = fit_plane(inliers);
   BackPlane plane;
-  plane.n = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
-  plane.d = plane.n.dot(mean);
+  plane.n = fit.n;
+  plane.d = plane.n.dot(fit.mean);
   if (plane.d < 0.0) plane.n = -plane.n, plane.d = -plane.d;
   // The box's content in front of it (towards the camera): the object stands before the plane,
   // not in it (clutter on a wall) nor behind it (the ring is something in front of the object).

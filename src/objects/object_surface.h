@@ -26,14 +26,19 @@ namespace dqo::objects {
 std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCamera& camera,
                                                const DepthView& depth, const SurfaceParams& params);
 
+// About 300 depth samples of the ring around `box` (the box grown by a quarter of its size on
+// each side, the box itself left out), camera frame: the surface the detection sits in. Empty
+// without depth or for an invalid box. stand_out_share and find_back_plane read it.
+std::vector<Eigen::Vector3d> ring_points(const Box2d& box, const PinholeCamera& camera, const DepthView& depth,
+                                         const SurfaceParams& params);
+
 // How much a detection's content stands out of the surface around it: the share of `box_points_c`
-// (the box's samples, camera frame) farther than stand_out_distance from the plane fitted to the
-// depth in a ring around the box (the box grown by a quarter of its size on each side). A
-// detector's clutter on a wall or a table is a patch of that surface (share near 0); an object
-// stands out of it. NaN where the ring is no plane (its rms above plane_tolerance: another
-// object, a corner) or holds too few samples: nothing to say.
-double stand_out_share(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c, const PinholeCamera& camera,
-                       const DepthView& depth, const SurfaceParams& params);
+// (the box's samples, camera frame) farther than stand_out_distance from the plane fitted to
+// `ring_c` (ring_points). A detector's clutter on a wall or a table is a patch of that surface
+// (share near 0); an object stands out of it. NaN where the ring is no plane (its rms above
+// plane_tolerance: another object, a corner) or holds too few samples: nothing to say.
+double stand_out_share(const std::vector<Eigen::Vector3f>& box_points_c, const std::vector<Eigen::Vector3d>& ring_c,
+                       const SurfaceParams& params);
 
 // A plane behind an object that it cannot pass: the wall a TV hangs on, the sofa's back behind a
 // cushion. n·p = d with n pointing away from the camera; frame as the caller's points.
@@ -42,14 +47,13 @@ struct BackPlane {
   double d = 0.0;
 };
 
-// The largest plane among the depth of the ring around `box` (as stand_out_share's ring; a
-// seeded RANSAC, so the same input gives the same plane), if it holds at least a third of the ring
-// (and 30 samples) and the box's content stands in front of it (the median of `box_points_c` more
-// than stand_out_distance on the camera's side). Camera frame. Unlike stand_out_share's one
-// plane, a part of the ring suffices: the wall above a sofa, with the floor below it.
-std::optional<BackPlane> find_back_plane(const Box2d& box, const std::vector<Eigen::Vector3f>& box_points_c,
-                                         const PinholeCamera& camera, const DepthView& depth,
-                                         const SurfaceParams& params);
+// The largest plane among `ring_c` (ring_points; a seeded RANSAC, so the same input gives the
+// same plane), if it holds at least a third of the ring (and 30 samples) and the box's content
+// stands in front of it (the median of `box_points_c` more than stand_out_distance on the
+// camera's side). Camera frame. Unlike stand_out_share's one plane, a part of the ring suffices:
+// the wall above a sofa, with the floor below it.
+std::optional<BackPlane> find_back_plane(const std::vector<Eigen::Vector3f>& box_points_c,
+                                         const std::vector<Eigen::Vector3d>& ring_c, const SurfaceParams& params);
 
 struct SupportEstimate {
   bool found = false;

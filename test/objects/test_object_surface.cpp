@@ -73,6 +73,13 @@ std::vector<Eigen::Vector3d> ring(const Eigen::Vector3d& target, double from, do
   return out;
 }
 
+// Three cameras on `ring` within ±0.2 rad of `axis` (horizontal) from `target`: a box seen from one
+// side only.
+std::vector<Eigen::Vector3d> facing(const Eigen::Vector3d& target, const Eigen::Vector3d& axis) {
+  const double yaw = std::atan2(axis.y(), axis.x());
+  return ring(target, yaw - 0.2, yaw + 0.2, 3, 0.5);
+}
+
 TEST(ObjectSurface, FindsTheTableUnderTheObjectNotItsOwnTop) {
   std::mt19937_64 rng(1);
   const OrientedBox truth = truth_box();
@@ -131,8 +138,7 @@ TEST(ObjectSurface, BoxFromThePointsWhereCamerasLookedAndFromTheDetectionsElsewh
 
   // Seen from one side only (the box's +x side): the far side comes from the detections' box.
   const Eigen::Vector3d x_axis = truth.rotation.col(0);
-  const double yaw_x = std::atan2(x_axis.y(), x_axis.x());
-  const std::vector<Eigen::Vector3d> one_side = ring(truth.centre, yaw_x - 0.2, yaw_x + 0.2, 3, 0.5);
+  const std::vector<Eigen::Vector3d> one_side = facing(truth.centre, x_axis);
   pts = scene_points(truth, one_side, 0.75, 0.002, rng);
   s = find_support(pts, q, params);
   ASSERT_TRUE(s.found);
@@ -165,8 +171,7 @@ TEST(ObjectSurface, AnUnseenBackStopsAtAPlaneBehindTheObject) {
   detections.half_extents.x() *= 1.6;  // too deep along the views, as few views from one side give
   const DualQuadric q = DualQuadric::from_params(truth.centre, truth.rotation, 1.3 * truth.half_extents);
   const Eigen::Vector3d x_axis = truth.rotation.col(0);
-  const double yaw_x = std::atan2(x_axis.y(), x_axis.x());
-  const std::vector<Eigen::Vector3d> one_side = ring(truth.centre, yaw_x - 0.2, yaw_x + 0.2, 3, 0.5);
+  const std::vector<Eigen::Vector3d> one_side = facing(truth.centre, x_axis);
   const std::vector<Eigen::Vector3d> pts = scene_points(truth, one_side, 0.75, 0.002, rng);
   const SupportEstimate s = find_support(pts, q, params);
   ASSERT_TRUE(s.found);
@@ -214,19 +219,20 @@ TEST(ObjectSurface, FindsTheWallBehindAnObject) {
   // A wall facing the camera 2.5 m away (render_depth's background depth).
   const DepthImage depth = test::render_depth({object}, camera, T_wc, 2.5f);
   const std::vector<Eigen::Vector3f> points = sample_box_points(*box, camera, test::view_of(depth), params);
-  const std::optional<BackPlane> wall = find_back_plane(*box, points, camera, test::view_of(depth), params);
+  const std::optional<BackPlane> wall =
+      find_back_plane(points, ring_points(*box, camera, test::view_of(depth), params), params);
   ASSERT_TRUE(wall);
   EXPECT_NEAR(wall->n.z(), 1.0, 1e-6);
   EXPECT_NEAR(wall->d, 2.5, 1e-4);
   // No depth around the object (a window): no plane.
   const DepthImage open = test::render_depth({object}, camera, T_wc, 0.0f);
-  EXPECT_FALSE(find_back_plane(*box, sample_box_points(*box, camera, test::view_of(open), params), camera,
-                               test::view_of(open), params));
+  EXPECT_FALSE(find_back_plane(sample_box_points(*box, camera, test::view_of(open), params),
+                               ring_points(*box, camera, test::view_of(open), params), params));
   // A box drawn on the wall itself (clutter): its content is the wall, not in front of it.
   const DepthImage bare = test::render_depth({}, camera, T_wc, 2.5f);
   const Box2d patch{250, 180, 330, 260};
-  EXPECT_FALSE(find_back_plane(patch, sample_box_points(patch, camera, test::view_of(bare), params), camera,
-                               test::view_of(bare), params));
+  EXPECT_FALSE(find_back_plane(sample_box_points(patch, camera, test::view_of(bare), params),
+                               ring_points(patch, camera, test::view_of(bare), params), params));
 }
 
 // Recurring clutter on a table is a flat patch of it; a book lying on the table is not.

@@ -50,13 +50,8 @@ namespace fs = std::filesystem;
 using dqo::ros_test::Capture;
 using dqo::ros_test::wait_for;
 
-dqo::SE3 to_se3(const geometry_msgs::Transform& t) {
-  return dqo::SE3(Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z),
-                  Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z));
-}
-double angle_deg(const dqo::SE3& T) {
-  return 2.0 * std::acos(std::min(1.0, std::abs(T.quaternion().w()))) * 180.0 / M_PI;
-}
+using dqo::ros_test::angle_deg;
+using dqo::ros_test::to_se3;
 long key(const ros::Time& t) { return std::lround(t.toSec() * 1e6); }
 
 // Every pixel of an image's data set to 0: a black colour image, or a depth image without depth

@@ -52,17 +52,8 @@ namespace fs = std::filesystem;
 using dqo::ros_test::Capture;
 using dqo::ros_test::wait_for;
 
-dqo::SE3 to_se3(const geometry_msgs::Pose& p) {
-  return dqo::SE3(Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z),
-                  Eigen::Vector3d(p.position.x, p.position.y, p.position.z));
-}
-dqo::SE3 to_se3(const geometry_msgs::Transform& t) {
-  return dqo::SE3(Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z),
-                  Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z));
-}
-double angle_deg(const dqo::SE3& T) {
-  return 2.0 * std::acos(std::min(1.0, std::abs(T.quaternion().w()))) * 180.0 / M_PI;
-}
+using dqo::ros_test::angle_deg;
+using dqo::ros_test::to_se3;
 
 // What the test hears from the node (callbacks run on an AsyncSpinner's thread).
 struct Recorder {
