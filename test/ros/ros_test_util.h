@@ -8,7 +8,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -27,27 +26,8 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include <dqo_map/DetectionArray.h>
-#include <geometry_msgs/Pose.h>
-#include <geometry_msgs/Transform.h>
-
-#include "dqo_map/geometry/se3.h"
 
 namespace dqo::ros_test {
-
-// Poses from messages, written here rather than taken from the nodes' conversions so that a test
-// checks the nodes against an independent reading.
-inline SE3 to_se3(const geometry_msgs::Pose& p) {
-  return SE3(Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z),
-             Eigen::Vector3d(p.position.x, p.position.y, p.position.z));
-}
-inline SE3 to_se3(const geometry_msgs::Transform& t) {
-  return SE3(Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z),
-             Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z));
-}
-// The rotation angle of T, degrees.
-inline double angle_deg(const SE3& T) {
-  return 2.0 * std::acos(std::min(1.0, std::abs(T.quaternion().w()))) * 180.0 / M_PI;
-}
 
 // One frame of the bag: everything dqo_make_scene writes at one stamp. tf (ground truth
 // map -> camera_base) is empty unless the bag was rendered with --gt-tf.

@@ -42,6 +42,7 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include "dqo_map/common/tum_trajectory.h"
+#include "ros_test_poses.h"
 #include "ros_test_util.h"
 
 namespace {

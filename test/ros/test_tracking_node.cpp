@@ -44,6 +44,7 @@
 #include <dqo_map/KeyFrame.h>
 
 #include "dqo_map/common/tum_trajectory.h"
+#include "ros_test_poses.h"
 #include "ros_test_util.h"
 
 namespace {
