@@ -145,18 +145,36 @@ struct ObjectMapper::Impl {
     return !(d > params.lifecycle.max_depth_disagreement);
   }
 
-  // Whether the depth in the object's detection boxes stands out of the surface around them (the
-  // median over the observations that can tell): a detector's clutter on a wall or a table does not.
-  bool stands_out(const MapObject& object) const {
-    if (!params.surface.enabled) return true;
+  // The stand-out shares (object_surface.h stand_out_share) of the object's detections that can
+  // tell, ascending.
+  std::vector<double> stand_out_shares(const MapObject& object) const {
     std::vector<double> shares;
     for (const ObjectObservation& o : object.observations) {
       const KeyframeRecord::DetectionDepth* d = depth_record_of(o);
       if (d && std::isfinite(d->stand_out)) shares.push_back(d->stand_out);
     }
-    if (shares.empty()) return true;
-    std::nth_element(shares.begin(), shares.begin() + static_cast<long>(shares.size() / 2), shares.end());
-    return shares[shares.size() / 2] >= params.surface.min_stand_out;
+    std::sort(shares.begin(), shares.end());
+    return shares;
+  }
+
+  // Whether the depth in the object's detection boxes stands out of the surface around them (the
+  // median over the observations that can tell): a detector's clutter on a wall or a table does not.
+  bool stands_out(const MapObject& object) const {
+    if (!params.surface.enabled) return true;
+    const std::vector<double> shares = stand_out_shares(object);
+    return shares.empty() || shares[shares.size() / 2] >= params.surface.min_stand_out;
+  }
+
+  // The depth's shape as evidence that the object exists, counted once per object (views of one
+  // spot are not independent evidence of its shape): where more than half of its detections that
+  // can tell stand clearly out of their surroundings (ExistenceParams::clear_stand_out), the
+  // likelihood ratio of that under an object and under a false alarm; 0 otherwise.
+  double shape_log_odds(const MapObject& object) const {
+    const ExistenceParams& e = params.lifecycle.existence;
+    if (!params.surface.enabled || !(e.clear_stand_out < 1.0)) return 0.0;
+    const std::vector<double> shares = stand_out_shares(object);
+    if (shares.empty() || shares[(shares.size() - 1) / 2] < e.clear_stand_out) return 0.0;
+    return std::log(e.clear_stand_out_if_object / e.clear_stand_out_if_clutter);
   }
 
   // Whether the depth shows the object standing out of the surface it rests on (in a levelled
@@ -373,7 +391,7 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
       }
       if (params.surface.enabled) {
         rec.points = sample_box_points(rec.box, kf.camera, kf.depth, params.surface);
-        const std::vector<Eigen::Vector3d> ring = ring_points(rec.box, kf.camera, kf.depth, params.surface);
+        const RingSurface ring = fit_ring_surface(ring_points(rec.box, kf.camera, kf.depth, params.surface), params.surface);
         rec.stand_out = stand_out_share(rec.points, ring, params.surface);
         if (params.surface.back_plane_max_angle_deg > 0.0) rec.back_plane = find_back_plane(rec.points, ring, params.surface);
       }
@@ -481,8 +499,11 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
   for (const ObjectId id : seen) {
     MapObject& o = objects.at(id);
     try_box_init(&o);
-    if (o.state == ObjectState::kCandidate && o.has_quadric && o.existence >= confirm_log_odds &&
-        agrees_with_depth(o) && stands_out(o) && rises_from_support(o)) {
+    if (o.state != ObjectState::kCandidate || !o.has_quadric) continue;
+    // The depth's shape joins the belief once, when the candidate is confirmed with it.
+    const double shape = shape_log_odds(o);
+    if (o.existence + shape >= confirm_log_odds && agrees_with_depth(o) && stands_out(o) && rises_from_support(o)) {
+      o.existence = std::min(o.existence + shape, params.lifecycle.existence.max_log_odds);
       o.state = ObjectState::kConfirmed;
     }
   }

@@ -130,55 +130,92 @@ std::vector<Eigen::Vector3d> ring_points(const Box2d& box, const PinholeCamera& 
   return ring;
 }
 
-double stand_out_share(const std::vector<Eigen::Vector3f>& box_points_c, const std::vector<Eigen::Vector3d>& ring_c,
-                       const SurfaceParams& params) {
-  if (box_points_c.empty() || ring_c.size() < 30) return std::nan("");
-  const PlaneFit plane = fit_plane(ring_c);
-  if (plane.rms > params.plane_tolerance + depth_noise(plane.mean.z())) return std::nan("");
-  int out = 0;
-  for (const Eigen::Vector3f& p : box_points_c) {
-    out += std::abs((p.cast<double>() - plane.mean).dot(plane.n)) > params.stand_out_distance + depth_noise(p.z());
-  }
-  return static_cast<double>(out) / static_cast<double>(box_points_c.size());
-}
+namespace {
 
-std::optional<BackPlane> find_back_plane(const std::vector<Eigen::Vector3f>& box_points_c,
-                                         const std::vector<Eigen::Vector3d>& ring, const SurfaceParams& params) {
-  if (box_points_c.size() < 10) return std::nullopt;
-  const size_t needed = std::max<size_t>(30, ring.size() / 3);
-  if (ring.size() < needed) return std::nullopt;
+// The largest plane among `points` by a seeded RANSAC over triples, refined by least squares over
+// its inliers; nullopt below `min_inliers`.
+std::optional<RingPlane> largest_plane(const std::vector<Eigen::Vector3d>& points, size_t min_inliers,
+                                       const SurfaceParams& params) {
+  if (points.size() < std::max<size_t>(3, min_inliers)) return std::nullopt;
   auto tolerance = [&](const Eigen::Vector3d& p) { return params.plane_tolerance + depth_noise(p.z()); };
-  // RANSAC over triples of ring samples, seeded: the same depth gives the same plane.
   std::mt19937 rng(7);
-  std::uniform_int_distribution<size_t> pick(0, ring.size() - 1);
+  std::uniform_int_distribution<size_t> pick(0, points.size() - 1);
   size_t best_count = 0;
   Eigen::Vector3d best_n = Eigen::Vector3d::UnitZ();
   double best_d = 0.0;
   for (int iteration = 0; iteration < 64; ++iteration) {
-    const Eigen::Vector3d& a = ring[pick(rng)];
-    const Eigen::Vector3d& b = ring[pick(rng)];
-    const Eigen::Vector3d& c = ring[pick(rng)];
+    const Eigen::Vector3d& a = points[pick(rng)];
+    const Eigen::Vector3d& b = points[pick(rng)];
+    const Eigen::Vector3d& c = points[pick(rng)];
     Eigen::Vector3d n = (b - a).cross(c - a);
     if (!(n.norm() > 1e-9)) continue;
     n.normalize();
-    double d = n.dot(a);
-    if (d < 0.0) n = -n, d = -d;  // facing away from the camera at the origin
+    const double d = n.dot(a);
     size_t count = 0;
-    for (const Eigen::Vector3d& p : ring) count += std::abs(n.dot(p) - d) <= tolerance(p);
+    for (const Eigen::Vector3d& p : points) count += std::abs(n.dot(p) - d) <= tolerance(p);
     if (count > best_count) best_count = count, best_n = n, best_d = d;
-    if (5 * best_count >= 4 * ring.size()) break;  // four fifths of the ring: no larger plane is left
+    if (5 * best_count >= 4 * points.size()) break;  // four fifths: no larger plane is left
   }
-  if (best_count < needed) return std::nullopt;
-  // Least squares over the inliers.
+  if (best_count < min_inliers) return std::nullopt;
   std::vector<Eigen::Vector3d> inliers;
-  for (const Eigen::Vector3d& p : ring) {
+  for (const Eigen::Vector3d& p : points) {
     if (std::abs(best_n.dot(p) - best_d) <= tolerance(p)) inliers.push_back(p);
   }
   const PlaneFit fit = fit_plane(inliers);
-  BackPlane plane;
+  RingPlane plane;
   plane.n = fit.n;
   plane.d = plane.n.dot(fit.mean);
-  if (plane.d < 0.0) plane.n = -plane.n, plane.d = -plane.d;
+  if (plane.d < 0.0) plane.n = -plane.n, plane.d = -plane.d;  // facing away from the camera at the origin
+  for (const Eigen::Vector3d& p : points) plane.inliers += std::abs(plane.n.dot(p) - plane.d) <= tolerance(p);
+  return plane;
+}
+
+}  // namespace
+
+RingSurface fit_ring_surface(const std::vector<Eigen::Vector3d>& ring_c, const SurfaceParams& params) {
+  RingSurface out;
+  out.samples = ring_c.size();
+  const size_t min_inliers = std::max<size_t>(30, ring_c.size() / 10);
+  std::vector<Eigen::Vector3d> rest = ring_c;
+  for (int k = 0; k < 2; ++k) {
+    const std::optional<RingPlane> plane = largest_plane(rest, min_inliers, params);
+    if (!plane) break;
+    out.planes.push_back(*plane);
+    const double tol = params.plane_tolerance;
+    rest.erase(std::remove_if(rest.begin(), rest.end(),
+                              [&](const Eigen::Vector3d& p) {
+                                return std::abs(plane->n.dot(p) - plane->d) <= tol + depth_noise(p.z());
+                              }),
+               rest.end());
+  }
+  return out;
+}
+
+double stand_out_share(const std::vector<Eigen::Vector3f>& box_points_c, const RingSurface& ring,
+                       const SurfaceParams& params) {
+  if (box_points_c.empty() || ring.samples < 30 || ring.planes.empty()) return std::nan("");
+  size_t explained = 0;  // the planes' inliers are disjoint (the second is found among the rest)
+  for (const RingPlane& plane : ring.planes) explained += plane.inliers;
+  if (static_cast<double>(explained) < params.ring_explained * static_cast<double>(ring.samples)) return std::nan("");
+  int out = 0;
+  for (const Eigen::Vector3f& pf : box_points_c) {
+    const Eigen::Vector3d p = pf.cast<double>();
+    const double limit = params.stand_out_distance + depth_noise(p.z());
+    bool off_all = true;
+    for (const RingPlane& plane : ring.planes) off_all = off_all && std::abs(plane.n.dot(p) - plane.d) > limit;
+    out += off_all;
+  }
+  return static_cast<double>(out) / static_cast<double>(box_points_c.size());
+}
+
+std::optional<BackPlane> find_back_plane(const std::vector<Eigen::Vector3f>& box_points_c, const RingSurface& ring,
+                                         const SurfaceParams& params) {
+  if (box_points_c.size() < 10 || ring.planes.empty()) return std::nullopt;
+  const RingPlane& largest = ring.planes[0];
+  if (largest.inliers < std::max<size_t>(30, ring.samples / 3)) return std::nullopt;
+  BackPlane plane;
+  plane.n = largest.n;
+  plane.d = largest.d;
   // The box's content in front of it (towards the camera): the object stands before the plane,
   // not in it (clutter on a wall) nor behind it (the ring is something in front of the object).
   std::vector<double> signed_distance;

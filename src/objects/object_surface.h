@@ -28,16 +28,34 @@ std::vector<Eigen::Vector3f> sample_box_points(const Box2d& box, const PinholeCa
 
 // About 300 depth samples of the ring around `box` (the box grown by a quarter of its size on
 // each side, the box itself left out), camera frame: the surface the detection sits in. Empty
-// without depth or for an invalid box. stand_out_share and find_back_plane read it.
+// without depth or for an invalid box. fit_ring_surface reads it.
 std::vector<Eigen::Vector3d> ring_points(const Box2d& box, const PinholeCamera& camera, const DepthView& depth,
                                          const SurfaceParams& params);
 
+// A plane among a ring's samples: n·p = d, n pointing away from the camera (camera frame), with
+// the number of ring samples within the plane tolerance.
+struct RingPlane {
+  Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+  double d = 0.0;
+  size_t inliers = 0;
+};
+
+// The surface a detection sits in, as up to two planes of its ring (ring_points): the largest (a
+// seeded RANSAC over triples, refined by least squares over its inliers: the same depth gives the
+// same planes), then the largest among the samples it leaves (a wall and the floor below it, a
+// table and the wall behind it). A plane holds at least 30 samples and a tenth of the ring.
+struct RingSurface {
+  std::vector<RingPlane> planes;  // largest first
+  size_t samples = 0;             // ring samples
+};
+RingSurface fit_ring_surface(const std::vector<Eigen::Vector3d>& ring_c, const SurfaceParams& params);
+
 // How much a detection's content stands out of the surface around it: the share of `box_points_c`
-// (the box's samples, camera frame) farther than stand_out_distance from the plane fitted to
-// `ring_c` (ring_points). A detector's clutter on a wall or a table is a patch of that surface
-// (share near 0); an object stands out of it. NaN where the ring is no plane (its rms above
-// plane_tolerance: another object, a corner) or holds too few samples: nothing to say.
-double stand_out_share(const std::vector<Eigen::Vector3f>& box_points_c, const std::vector<Eigen::Vector3d>& ring_c,
+// (the box's samples, camera frame) farther than stand_out_distance from every plane of `ring`.
+// A detector's clutter on a wall, on a table or where they meet is a patch of that surface (share
+// near 0); an object stands out of it. NaN where the planes leave more than 1 − ring_explained of
+// the ring (other objects around it: nothing to say) or the ring holds too few samples.
+double stand_out_share(const std::vector<Eigen::Vector3f>& box_points_c, const RingSurface& ring,
                        const SurfaceParams& params);
 
 // A plane behind an object that it cannot pass: the wall a TV hangs on, the sofa's back behind a
@@ -47,13 +65,12 @@ struct BackPlane {
   double d = 0.0;
 };
 
-// The largest plane among `ring_c` (ring_points; a seeded RANSAC, so the same input gives the
-// same plane), if it holds at least a third of the ring (and 30 samples) and the box's content
-// stands in front of it (the median of `box_points_c` more than stand_out_distance on the
-// camera's side). Camera frame. Unlike stand_out_share's one plane, a part of the ring suffices:
-// the wall above a sofa, with the floor below it.
-std::optional<BackPlane> find_back_plane(const std::vector<Eigen::Vector3f>& box_points_c,
-                                         const std::vector<Eigen::Vector3d>& ring_c, const SurfaceParams& params);
+// The ring's largest plane (fit_ring_surface), if it holds at least a third of the ring (and 30
+// samples) and the box's content stands in front of it (the median of `box_points_c` more than
+// stand_out_distance on the camera's side). Camera frame. Unlike stand_out_share, a part of the
+// ring suffices: the wall above a sofa, with the floor below it.
+std::optional<BackPlane> find_back_plane(const std::vector<Eigen::Vector3f>& box_points_c, const RingSurface& ring,
+                                         const SurfaceParams& params);
 
 struct SupportEstimate {
   bool found = false;

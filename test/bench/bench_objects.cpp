@@ -187,7 +187,12 @@ bool run_scene(const Options& o, const std::string& scene, const std::string& st
                   box_text(est, match.est_id).c_str(), box_text(gt, match.gt_id).c_str());
     }
     for (const auto id : m.unmatched_gt) std::printf("    unmatched gt %llu\n", static_cast<unsigned long long>(id));
-    for (const auto id : m.spurious) std::printf("    spurious est %llu\n", static_cast<unsigned long long>(id));
+    for (const auto id : m.spurious) {
+      int cls = -1;
+      for (const auto& e : est) cls = e.id == id ? e.class_id : cls;
+      std::printf("    spurious est %llu class %d | est %s\n", static_cast<unsigned long long>(id), cls,
+                  box_text(est, id).c_str());
+    }
   }
   refinement_ms->insert(refinement_ms->end(), r.refinement_ms.begin(), r.refinement_ms.end());
   return true;

@@ -220,19 +220,19 @@ TEST(ObjectSurface, FindsTheWallBehindAnObject) {
   const DepthImage depth = test::render_depth({object}, camera, T_wc, 2.5f);
   const std::vector<Eigen::Vector3f> points = sample_box_points(*box, camera, test::view_of(depth), params);
   const std::optional<BackPlane> wall =
-      find_back_plane(points, ring_points(*box, camera, test::view_of(depth), params), params);
+      find_back_plane(points, fit_ring_surface(ring_points(*box, camera, test::view_of(depth), params), params), params);
   ASSERT_TRUE(wall);
   EXPECT_NEAR(wall->n.z(), 1.0, 1e-6);
   EXPECT_NEAR(wall->d, 2.5, 1e-4);
   // No depth around the object (a window): no plane.
   const DepthImage open = test::render_depth({object}, camera, T_wc, 0.0f);
   EXPECT_FALSE(find_back_plane(sample_box_points(*box, camera, test::view_of(open), params),
-                               ring_points(*box, camera, test::view_of(open), params), params));
+                               fit_ring_surface(ring_points(*box, camera, test::view_of(open), params), params), params));
   // A box drawn on the wall itself (clutter): its content is the wall, not in front of it.
   const DepthImage bare = test::render_depth({}, camera, T_wc, 2.5f);
   const Box2d patch{250, 180, 330, 260};
   EXPECT_FALSE(find_back_plane(sample_box_points(patch, camera, test::view_of(bare), params),
-                               ring_points(patch, camera, test::view_of(bare), params), params));
+                               fit_ring_surface(ring_points(patch, camera, test::view_of(bare), params), params), params));
 }
 
 // Recurring clutter on a table is a flat patch of it; a book lying on the table is not.
