@@ -181,6 +181,9 @@ RingSurface fit_ring_surface(const std::vector<Eigen::Vector3d>& ring_c, const S
     const std::optional<RingPlane> plane = largest_plane(rest, min_inliers, params);
     if (!plane) break;
     out.planes.push_back(*plane);
+    // One plane that holds the ring as stand_out_share needs it: a second would change little
+    // (a few samples) and cost a second RANSAC per detection.
+    if (static_cast<double>(plane->inliers) >= params.ring_explained * static_cast<double>(ring_c.size())) break;
     const double tol = params.plane_tolerance;
     rest.erase(std::remove_if(rest.begin(), rest.end(),
                               [&](const Eigen::Vector3d& p) {

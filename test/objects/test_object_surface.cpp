@@ -235,6 +235,61 @@ TEST(ObjectSurface, FindsTheWallBehindAnObject) {
                                fit_ring_surface(ring_points(patch, camera, test::view_of(bare), params), params), params));
 }
 
+// A pouf on the floor against a wall: its ring is two planes (no single one holds it), found with
+// their normals; the pouf's content stands clearly out of both, a box on the bare corner does not,
+// and a ring that two planes cannot explain (a third surface: a cabinet beside it) cannot tell.
+TEST(ObjectSurface, TheRingOfABoxInAWallCornerIsTwoPlanes) {
+  const PinholeCamera camera = test::test_camera(320, 240);
+  const DualQuadric wall = DualQuadric::from_params(Eigen::Vector3d(-1.5, 0.0, 2.0), Eigen::Matrix3d::Identity(),
+                                                    Eigen::Vector3d(0.01, 20.0, 20.0));
+  const DualQuadric floor = DualQuadric::from_params(Eigen::Vector3d(0.0, 0.0, -0.01), Eigen::Matrix3d::Identity(),
+                                                     Eigen::Vector3d(20.0, 20.0, 0.01));
+  const DualQuadric pouf = DualQuadric::from_params(Eigen::Vector3d(-1.27, 0.0, 0.14), Eigen::Matrix3d::Identity(),
+                                                    Eigen::Vector3d(0.19, 0.19, 0.14));
+  const SE3 T_wc = test::look_at(Eigen::Vector3d(0.9, -0.5, 0.9), pouf.centre());
+  const SE3 T_cw = T_wc.inverse();
+  const auto box = test::exact_box(pouf, camera, T_wc);
+  ASSERT_TRUE(box);
+  const SurfaceParams params;
+  auto judge = [&](const std::vector<DualQuadric>& scene, RingSurface* ring) {
+    const DepthImage depth = test::render_depth(scene, camera, T_wc, 8.0f);
+    *ring = fit_ring_surface(ring_points(*box, camera, test::view_of(depth), params), params);
+    return stand_out_share(sample_box_points(*box, camera, test::view_of(depth), params), *ring, params);
+  };
+  RingSurface ring;
+  const double pouf_share = judge({wall, floor, pouf}, &ring);
+  ASSERT_EQ(ring.planes.size(), 2u);
+  EXPECT_LT(ring.planes[0].inliers, params.ring_explained * ring.samples) << "no single plane holds the ring";
+  EXPECT_GE(ring.planes[0].inliers + ring.planes[1].inliers, params.ring_explained * ring.samples);
+  // The planes' normals in the world: the wall's x and the floor's z (either order).
+  const Eigen::Vector3d n0 = T_wc.rotation() * ring.planes[0].n, n1 = T_wc.rotation() * ring.planes[1].n;
+  EXPECT_GT(std::max(std::abs(n0.x()) * std::abs(n1.z()), std::abs(n0.z()) * std::abs(n1.x())), 0.999);
+  // Each plane where it is: the wall's 1.49 m from the origin along x, the floor at z = 0.
+  for (const RingPlane& p : ring.planes) {
+    const Eigen::Vector3d n_w = T_wc.rotation() * p.n;
+    const double d_w = p.d - p.n.dot(T_cw.translation());  // n_w·x_w = d_w
+    if (std::abs(n_w.x()) > 0.99) {
+      EXPECT_NEAR(std::abs(d_w), 1.49, 0.01);
+    } else {
+      EXPECT_NEAR(std::abs(n_w.z()), 1.0, 0.01);
+      EXPECT_NEAR(std::abs(d_w), 0.0, 0.01);
+    }
+  }
+  EXPECT_GE(pouf_share, 0.5);
+  // The bare corner: the box's content is the wall and the floor.
+  EXPECT_LT(judge({wall, floor}, &ring), params.min_stand_out);
+  // Other surfaces beside the pouf (two cabinets' faces, a fifth of the ring): nothing to say.
+  const DualQuadric left = DualQuadric::from_params(Eigen::Vector3d(-1.25, -0.46, 0.5), Eigen::Matrix3d::Identity(),
+                                                    Eigen::Vector3d(0.3, 0.25, 0.5));
+  const DualQuadric right = DualQuadric::from_params(Eigen::Vector3d(-1.25, 0.46, 0.5), Eigen::Matrix3d::Identity(),
+                                                     Eigen::Vector3d(0.3, 0.25, 0.5));
+  const double third = judge({wall, floor, pouf, left, right}, &ring);
+  size_t explained = 0;
+  for (const RingPlane& p : ring.planes) explained += p.inliers;
+  EXPECT_LT(explained, params.ring_explained * ring.samples);
+  EXPECT_TRUE(std::isnan(third));
+}
+
 // Recurring clutter on a table is a flat patch of it; a book lying on the table is not.
 TEST(ObjectSurface, AFlatPatchOfTheTableIsNoObject) {
   std::mt19937_64 rng(3);
