@@ -90,4 +90,15 @@ inline DepthView view_of(const DepthImage& depth) {
   return v;
 }
 
+// A pouf (the room scene's) on the floor against a wall, world z up: the wall's face at x = -1.49,
+// the floor's at z = 0; wall and floor are flat ellipsoids 2 cm thick, 40 m wide.
+struct CornerScene {
+  DualQuadric wall = DualQuadric::from_params(Eigen::Vector3d(-1.5, 0.0, 2.0), Eigen::Matrix3d::Identity(),
+                                              Eigen::Vector3d(0.01, 20.0, 20.0));
+  DualQuadric floor = DualQuadric::from_params(Eigen::Vector3d(0.0, 0.0, -0.01), Eigen::Matrix3d::Identity(),
+                                               Eigen::Vector3d(20.0, 20.0, 0.01));
+  DualQuadric pouf = DualQuadric::from_params(Eigen::Vector3d(-1.27, 0.0, 0.14), Eigen::Matrix3d::Identity(),
+                                              Eigen::Vector3d(0.19, 0.19, 0.14));
+};
+
 }  // namespace dqo::objects::test

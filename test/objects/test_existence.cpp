@@ -215,12 +215,8 @@ struct CornerRun {
   double existence = 0.0;  // the pouf's candidate's, at the end
 };
 CornerRun corner_run(bool pouf_there, float score, const ObjectMapperParams& params) {
-  const DualQuadric wall = DualQuadric::from_params(Eigen::Vector3d(-1.5, 0.0, 2.0), Eigen::Matrix3d::Identity(),
-                                                    Eigen::Vector3d(0.01, 20.0, 20.0));
-  const DualQuadric floor = DualQuadric::from_params(Eigen::Vector3d(0.0, 0.0, -0.01), Eigen::Matrix3d::Identity(),
-                                                     Eigen::Vector3d(20.0, 20.0, 0.01));
-  const DualQuadric pouf = DualQuadric::from_params(Eigen::Vector3d(-1.27, 0.0, 0.14), Eigen::Matrix3d::Identity(),
-                                                    Eigen::Vector3d(0.19, 0.19, 0.14));
+  const test::CornerScene corner;
+  const DualQuadric &wall = corner.wall, &floor = corner.floor, &pouf = corner.pouf;
   const PinholeCamera camera = test_camera(320, 240);
   ObjectMapper mapper(params);
   CornerRun out;

@@ -240,12 +240,8 @@ TEST(ObjectSurface, FindsTheWallBehindAnObject) {
 // and a ring that two planes cannot explain (a third surface: a cabinet beside it) cannot tell.
 TEST(ObjectSurface, TheRingOfABoxInAWallCornerIsTwoPlanes) {
   const PinholeCamera camera = test::test_camera(320, 240);
-  const DualQuadric wall = DualQuadric::from_params(Eigen::Vector3d(-1.5, 0.0, 2.0), Eigen::Matrix3d::Identity(),
-                                                    Eigen::Vector3d(0.01, 20.0, 20.0));
-  const DualQuadric floor = DualQuadric::from_params(Eigen::Vector3d(0.0, 0.0, -0.01), Eigen::Matrix3d::Identity(),
-                                                     Eigen::Vector3d(20.0, 20.0, 0.01));
-  const DualQuadric pouf = DualQuadric::from_params(Eigen::Vector3d(-1.27, 0.0, 0.14), Eigen::Matrix3d::Identity(),
-                                                    Eigen::Vector3d(0.19, 0.19, 0.14));
+  const test::CornerScene corner;
+  const DualQuadric &wall = corner.wall, &floor = corner.floor, &pouf = corner.pouf;
   const SE3 T_wc = test::look_at(Eigen::Vector3d(0.9, -0.5, 0.9), pouf.centre());
   const SE3 T_cw = T_wc.inverse();
   const auto box = test::exact_box(pouf, camera, T_wc);
