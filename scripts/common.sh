@@ -19,6 +19,9 @@ dqo_clean_path() {
   export ROS_HOME=${ROS_HOME:-$DQO_BUILD/ros_home}
   export CCACHE_DIR=${CCACHE_DIR:-$HOME/.cache/ccache}
   export CCACHE_MAXSIZE=${CCACHE_MAXSIZE:-5G}
+  # Paths inside the repository enter ccache's hash relative to the build directory, so that a
+  # second clone (another folder) hits the first one's cache.
+  export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$DQO_REPO}
 }
 
 dqo_log() { printf '[dqo] %s\n' "$*" >&2; }
