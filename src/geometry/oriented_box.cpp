@@ -288,4 +288,26 @@ OrientedBox box_from_quadric(const DualQuadric& q) {
   return box;
 }
 
+void canonical_axes(Eigen::Matrix3d* R, Eigen::Vector3d* extents) {
+  const Eigen::Matrix3d in = *R;
+  const Eigen::Vector3d e = *extents;
+  int z = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (std::abs(in(2, k)) > std::abs(in(2, z))) z = k;
+  }
+  const int a = (z + 1) % 3, b = (z + 2) % 3;
+  // The longer of the other two; where they are equal (to rounding), the one nearer the map's x.
+  const double tie = 1e-9 * std::max(e(a), e(b));
+  int x = e(a) > e(b) ? a : b;
+  if (std::abs(e(a) - e(b)) <= tie) x = std::abs(in(0, a)) >= std::abs(in(0, b)) ? a : b;
+  const int y = x == a ? b : a;
+  Eigen::Vector3d vz = in.col(z), vx = in.col(x);
+  if (vz.z() < 0.0) vz = -vz;
+  if (vx.x() < -1e-12 || (std::abs(vx.x()) <= 1e-12 && vx.y() < 0.0)) vx = -vx;
+  R->col(0) = vx;
+  R->col(1) = vz.cross(vx);
+  R->col(2) = vz;
+  *extents = Eigen::Vector3d(e(x), e(y), e(z));
+}
+
 }  // namespace dqo

@@ -11,18 +11,26 @@
 namespace dqo::ros_bridge {
 
 void set_object_geometry(const DualQuadric& q, const OrientedBox& box, dqo_map::Object* msg) {
-  msg->pose = to_pose_msg(SE3::from_rotation_translation(q.rotation(), q.centre()));
-  msg->semi_axes.x = q.semi_axes().x();
-  msg->semi_axes.y = q.semi_axes().y();
-  msg->semi_axes.z = q.semi_axes().z();
+  // One orientation everywhere (canonical_axes): the association node's ellipsoid and the mapping
+  // nodelet's (rebuilt from the 4x4 matrix, its axes in another order) report the same pose.
+  Eigen::Matrix3d R = q.rotation();
+  Eigen::Vector3d axes = q.semi_axes();
+  canonical_axes(&R, &axes);
+  msg->pose = to_pose_msg(SE3::from_rotation_translation(R, q.centre()));
+  msg->semi_axes.x = axes.x();
+  msg->semi_axes.y = axes.y();
+  msg->semi_axes.z = axes.z();
   const Eigen::Matrix4d Q = q.matrix();
   for (int r = 0; r < 4; ++r) {
     for (int c = 0; c < 4; ++c) msg->dual_quadric[4 * r + c] = Q(r, c);
   }
-  msg->box_pose = to_pose_msg(SE3::from_rotation_translation(box.rotation, box.centre));
-  msg->box_half_extents.x = box.half_extents.x();
-  msg->box_half_extents.y = box.half_extents.y();
-  msg->box_half_extents.z = box.half_extents.z();
+  Eigen::Matrix3d B = box.rotation;
+  Eigen::Vector3d half = box.half_extents;
+  canonical_axes(&B, &half);
+  msg->box_pose = to_pose_msg(SE3::from_rotation_translation(B, box.centre));
+  msg->box_half_extents.x = half.x();
+  msg->box_half_extents.y = half.y();
+  msg->box_half_extents.z = half.z();
 }
 
 dqo_map::Object to_object_msg(const objects::MapObject& object, const std::map<int, std::string>& class_names,

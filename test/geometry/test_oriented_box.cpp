@@ -433,5 +433,46 @@ TEST(OrientedBox, BoxFromQuadricIndependentOfParametrisation) {
   }
 }
 
+// The same ellipsoid given with its axes in any order and sign reports one rotation: z nearest
+// the map's up and pointing up, x the longer of the others, right-handed; the shape unchanged.
+TEST(CanonicalAxes, AnyOrderAndSignOfTheAxesGivesOneRotation) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), len(0.05, 1.0);
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int trial = 0; trial < 200; ++trial) {
+    const Eigen::Matrix3d R0 =
+        Eigen::Quaterniond(Eigen::Vector4d(u(rng), u(rng), u(rng), u(rng)).normalized()).toRotationMatrix();
+    const Eigen::Vector3d e0(len(rng), len(rng), len(rng));
+    const Eigen::Matrix3d shape = R0 * e0.array().square().matrix().asDiagonal() * R0.transpose();
+    Eigen::Matrix3d R_ref = R0;
+    Eigen::Vector3d e_ref = e0;
+    canonical_axes(&R_ref, &e_ref);
+    // A proper rotation, z up and nearest the map's up, x the longer of the other two.
+    EXPECT_NEAR(R_ref.determinant(), 1.0, 1e-9);
+    EXPECT_LT((R_ref.transpose() * R_ref - Eigen::Matrix3d::Identity()).norm(), 1e-9);
+    EXPECT_GE(R_ref(2, 2), 0.0);
+    EXPECT_GE(std::abs(R_ref(2, 2)), std::abs(R_ref(2, 0)) - 1e-12);
+    EXPECT_GE(std::abs(R_ref(2, 2)), std::abs(R_ref(2, 1)) - 1e-12);
+    EXPECT_GE(e_ref.x(), e_ref.y());
+    EXPECT_GE(R_ref(0, 0), 0.0);
+    // The shape it describes is the same.
+    EXPECT_LT((R_ref * e_ref.array().square().matrix().asDiagonal() * R_ref.transpose() - shape).norm(), 1e-9);
+    // Every permutation and sign of the axes gives the same.
+    for (const auto& p : perms) {
+      for (int signs = 0; signs < 8; ++signs) {
+        Eigen::Matrix3d R;
+        Eigen::Vector3d e;
+        for (int c = 0; c < 3; ++c) {
+          R.col(c) = ((signs >> c) & 1 ? -1.0 : 1.0) * R0.col(p[c]);
+          e(c) = e0(p[c]);
+        }
+        canonical_axes(&R, &e);
+        EXPECT_LT((R - R_ref).norm(), 1e-12) << "trial " << trial;
+        EXPECT_LT((e - e_ref).norm(), 1e-15);
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace dqo

@@ -87,6 +87,22 @@ TEST(MappingConversions, ObjectsSurviveAMessage) {
   EXPECT_LT((back->box.centre - s.object.box.centre).norm(), 1e-9);
   EXPECT_LT((back->box.rotation - s.object.box.rotation).norm(), 1e-9);
   EXPECT_LT((back->box.half_extents - s.object.box.half_extents).norm(), 1e-9);
+  // One orientation everywhere: the record rebuilt from the 4x4 matrix (its axes come out of the
+  // decomposition in another order) reports the pose and semi-axes the first message had.
+  mapping::ObjectSummary again = s;
+  again.object = *back;
+  const dqo_map::Object msg2 = to_object_msg(again);
+  const Eigen::Quaterniond q1(msg.pose.orientation.w, msg.pose.orientation.x, msg.pose.orientation.y,
+                              msg.pose.orientation.z);
+  const Eigen::Quaterniond q2(msg2.pose.orientation.w, msg2.pose.orientation.x, msg2.pose.orientation.y,
+                              msg2.pose.orientation.z);
+  EXPECT_NEAR(std::abs(q1.dot(q2)), 1.0, 1e-9);
+  EXPECT_NEAR(msg.semi_axes.x, msg2.semi_axes.x, 1e-9);
+  EXPECT_NEAR(msg.semi_axes.y, msg2.semi_axes.y, 1e-9);
+  EXPECT_NEAR(msg.semi_axes.z, msg2.semi_axes.z, 1e-9);
+  // ... and that pose is the canonical one: z nearest the map's up, x the longer horizontal axis.
+  EXPECT_NEAR(msg.semi_axes.x, 0.1, 1e-12);
+  EXPECT_NEAR(msg.semi_axes.z, 0.2, 1e-12);
   // An older publisher without a box: the ellipsoid's.
   dqo_map::Object no_box = msg;
   no_box.box_half_extents = geometry_msgs::Vector3();

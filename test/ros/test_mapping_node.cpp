@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <dqo_map/ExtractObject.h>
 #include <dqo_map/GetObject.h>
@@ -311,6 +312,34 @@ TEST_F(MappingNodeTest, SameObjectsAndGaussiansAsTheOfflineRunAndMeshesOfTheObje
     ASSERT_NE(r, nullptr);
     EXPECT_LT((r->quadric.centre() - o.quadric.centre()).norm(), 0.005) << "object " << o.id;
   }
+
+  // ---- one orientation everywhere: list_objects (the association node's ellipsoids) and
+  // get_object (the mapping nodelet's, rebuilt from the 4x4 dual quadric) report the same pose
+  dqo_map::ListObjects list;
+  ASSERT_TRUE(call("/dqo_map/list_objects", list));
+  ASSERT_FALSE(list.response.objects.empty());
+  int compared = 0;
+  for (const dqo_map::Object& listed : list.response.objects) {
+    dqo_map::GetObject get;
+    get.request.id = listed.id;
+    ASSERT_TRUE(call("/dqo_map/get_object", get));
+    if (!get.response.found) continue;  // confirmed after the mapping nodelet's last object update
+    const dqo_map::Object& got = get.response.object;
+    const Eigen::Vector3d c_list(listed.pose.position.x, listed.pose.position.y, listed.pose.position.z);
+    const Eigen::Vector3d c_got(got.pose.position.x, got.pose.position.y, got.pose.position.z);
+    if ((c_list - c_got).norm() > 1e-6) continue;  // another version of the object (a later keyframe's)
+    const Eigen::Quaterniond q_list(listed.pose.orientation.w, listed.pose.orientation.x, listed.pose.orientation.y,
+                                    listed.pose.orientation.z);
+    const Eigen::Quaterniond q_got(got.pose.orientation.w, got.pose.orientation.x, got.pose.orientation.y,
+                                   got.pose.orientation.z);
+    EXPECT_NEAR(std::abs(q_list.dot(q_got)), 1.0, 1e-6) << "object " << listed.id << ": one quaternion (up to sign)";
+    EXPECT_NEAR(listed.semi_axes.x, got.semi_axes.x, 1e-6) << "object " << listed.id;
+    EXPECT_NEAR(listed.semi_axes.y, got.semi_axes.y, 1e-6) << "object " << listed.id;
+    EXPECT_NEAR(listed.semi_axes.z, got.semi_axes.z, 1e-6) << "object " << listed.id;
+    EXPECT_GE(listed.semi_axes.x, listed.semi_axes.y) << "x the longer of the horizontal axes";
+    ++compared;
+  }
+  EXPECT_GE(compared, 3) << "most objects are the same version in both nodes once the bag is mapped";
 
   // ---- extract_object for each ground-truth object; the meshes against the ground truth
   auto dataset = dqo::open_dataset((dir_ / "data").string(), &error);

@@ -46,4 +46,11 @@ double centre_distance(const OrientedBox& a, const OrientedBox& b);
 // semi-axes (half extents = semi-axes).
 OrientedBox box_from_quadric(const DualQuadric& q);
 
+// One orientation for an ellipsoid or a box wherever it is reported (messages, services): its
+// axes permuted and flipped, the shape unchanged, so that z is the axis nearest the map's up
+// (+z) and points up, x is the longer of the other two (the one nearer the map's +x where they
+// are equal) and points to +x's side (+y's where it is perpendicular to x), y = z × x. `R`'s
+// columns are the axes, `extents` their lengths (semi-axes or half extents).
+void canonical_axes(Eigen::Matrix3d* R, Eigen::Vector3d* extents);
+
 }  // namespace dqo
