@@ -102,6 +102,7 @@ void Tracker::Impl::create_keyframe(TrackedFrame* frame) {
   last_keyframe_frame_ = frame->number;
   reference_keyframe_ = id;
   run_local_ba(id);
+  loop_query_ = id;  // place recognition at the start of the next frame (tracker_loop.cpp)
 }
 
 void Tracker::Impl::create_points(uint64_t keyframe_id, TrackedFrame* frame) {
@@ -292,6 +293,10 @@ void Tracker::Impl::apply_ba_result(const LocalBaResult& result) {
   for (const auto& [id, p_w] : result.points)
     if (MapPoint* p = map_.map_point(id)) p->p_w = p_w;
   for (const auto& [kf, point] : result.outliers) map_.erase_observation(point, kf);
+  follow_keyframes(moved);
+}
+
+void Tracker::Impl::follow_keyframes(const std::unordered_map<uint64_t, SE3>& moved) {
   // The last frame follows its reference keyframe (ORB-SLAM2), so the next frame's motion model
   // and dense prior start from where the adjusted map says it was. This only helps because the
   // adjustment keeps the dense odometry between keyframes (OdometryCost): without it the
@@ -359,6 +364,7 @@ void Tracker::Impl::reset() {
   ba_wanted_ = kNoId;
   ba_outstanding_ = false;
   ba_due_frame_ = 0;
+  loop_query_ = kNoId;
   odometry_covariance_.setZero();
   odometry_valid_ = false;
   std::lock_guard<std::mutex> lock(registry_mutex_);

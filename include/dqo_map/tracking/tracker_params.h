@@ -116,6 +116,24 @@ struct LocalBaParams {
   bool deterministic = false;
 };
 
+// Loop closing over the tracker's keyframes (loop_closing.h): each new keyframe is matched by
+// descriptor against older keyframes it shares no map point with; the best are verified by PnP
+// RANSAC with depth; a verified loop corrects every keyframe by a pose graph (SE(3)) and then a
+// global bundle adjustment. Runs on the tracker's thread at the start of the frame after the
+// keyframe (deterministic). optimise_map() (the end of an offline run) adjusts the whole map once more.
+struct LoopParams {
+  bool enabled = true;
+  int min_keyframe_gap = 10;      // a candidate is at least this many keyframes older than the query
+  int min_matches = 60;           // descriptor matches (ratio test, orientation) to be verified
+  int max_verify = 3;             // candidates, the best matched first, given to PnP RANSAC
+  int min_inliers = 80;           // PnP inliers (after refinement with depth) for a loop
+  int pose_graph_iterations = 20;
+  int min_edge_shared = 30;       // covisibility edges of the pose graph: at least this many shared points
+  bool global_ba = true;          // a global bundle adjustment after each loop correction
+  int global_ba_iterations = 10;
+  bool final_global_ba = true;    // optimise_map() runs a global BA (offline: dqo_track's output)
+};
+
 struct RelocParams {
   int candidate_keyframes = 20;   // matched by descriptor against this many recent/covisible
   int min_inliers = 30;
@@ -165,6 +183,7 @@ struct TrackerParams {
   KeyframeParams keyframes;
   LocalBaParams local_ba;
   RelocParams reloc;
+  LoopParams loop;
   SearchParams search;
   QualityParams quality;
   bool use_dense = true;        // fuse dense depth alignment with the features
