@@ -81,6 +81,7 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
                             params_.pose.max_depth_gap_s;
   TrackedFrame frame;
   frame.number = ++frame_counter_;
+  frame.timestamp = input.timestamp;
   if (params_.use_features) extractor_.extract(*input.rgb, *input.depth, &frame.features);
   if (depth_asynchronous_) mark_asynchronous_depth(&frame);
   frame.map_points.assign(frame.features.size(), kNoId);

@@ -27,6 +27,7 @@ namespace dqo::tracking {
 // One frame as tracking sees it.
 struct TrackedFrame {
   uint64_t number = 0;  // the tracker's frame counter
+  double timestamp = 0.0;
   OrbFrame features;
   std::vector<uint64_t> map_points;  // per keypoint: its matched map point (inliers), or kNoId
   SE3 T_wc;
@@ -59,6 +60,11 @@ struct Refinement {
 struct RegisteredFrame {
   uint64_t reference_keyframe = kNoId;
   SE3 T_ref_frame;
+  // For the final refinement (RefineParams, tracker_loop.cpp).
+  uint64_t number = 0;
+  double timestamp = 0.0;
+  bool degraded = false;
+  std::vector<std::pair<uint64_t, PoseObservation>> observations;  // (map point, its keypoint)
 };
 
 struct Tracker::Impl {
@@ -182,6 +188,7 @@ struct Tracker::Impl {
   void close_pending_loop();
   void run_global_ba(int iterations);
   void optimise_map();
+  void refine_registered_frames();
   uint64_t loop_query_ = kNoId;  // the newest keyframe, for place recognition on the next frame
   std::atomic<uint64_t> loops_closed_{0};
   std::atomic<uint64_t> loop_queries_{0};

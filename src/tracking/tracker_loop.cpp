@@ -3,8 +3,10 @@
 // machine load), the correction, and the global bundle adjustment after it and at the end of a run.
 
 #include <chrono>
+#include <map>
 
 #include "loop_closing.h"
+#include "trajectory_refiner.h"
 #include "tracker_impl.h"
 
 namespace dqo::tracking {
@@ -49,6 +51,44 @@ void Tracker::Impl::run_global_ba(int iterations) {
 void Tracker::Impl::optimise_map() {
   wait_for_mapping();
   if (params_.loop.final_global_ba) run_global_ba(params_.loop.global_ba_iterations);
+  if (params_.refine.enabled) refine_registered_frames();
+}
+
+void Tracker::Impl::refine_registered_frames() {
+  std::lock_guard<std::mutex> lock(registry_mutex_);
+  // One entry per tracked frame (a frame may be registered under several IDs), in time order.
+  std::map<uint64_t, std::vector<uint64_t>> ids_of;  // frame number -> registered IDs
+  for (const auto& [id, r] : registered_)
+    if (map_.keyframe(r.reference_keyframe) != nullptr) ids_of[r.number].push_back(id);
+  std::vector<RefinerFrame> frames;
+  std::vector<uint64_t> numbers;
+  for (const auto& [number, ids] : ids_of) {
+    const RegisteredFrame& r = registered_.at(ids.front());
+    RefinerFrame f;
+    f.timestamp = r.timestamp;
+    f.degraded = r.degraded;
+    f.T_wc = map_.keyframe(r.reference_keyframe)->T_wc * r.T_ref_frame;
+    if (params_.refine.reregister) {
+      std::vector<PoseObservation> observations;
+      for (const auto& [point, o] : r.observations) {
+        const MapPoint* p = map_.map_point(point);
+        if (p == nullptr) continue;
+        observations.push_back(o);
+        observations.back().p_w = p->p_w;
+      }
+      if (static_cast<int>(observations.size()) >= params_.min_inliers_ok) {
+        const PoseOptimisationResult solved =
+            optimise_pose(f.T_wc, observations, camera_, nullptr, params_.pose);
+        if (solved.solved && solved.inliers >= params_.min_inliers_ok) f.T_wc = solved.T_wc;
+      }
+    }
+    if (!frames.empty() && f.timestamp <= frames.back().timestamp) continue;  // not in time order
+    frames.push_back(f);
+    numbers.push_back(number);
+  }
+  const std::vector<SE3> refined = refine_trajectory(frames, params_.refine);
+  for (size_t i = 0; i < numbers.size(); ++i)
+    for (const uint64_t id : ids_of.at(numbers[i])) corrections_[id] = refined[i];
 }
 
 }  // namespace dqo::tracking

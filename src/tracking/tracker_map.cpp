@@ -316,8 +316,28 @@ void Tracker::Impl::follow_keyframes(const std::unordered_map<uint64_t, SE3>& mo
 void Tracker::Impl::register_frame(uint64_t id) {
   if (!last_ || !has_pose(reported_state_) || map_.keyframe(last_->reference_keyframe) == nullptr)
     return;
+  RegisteredFrame r;
+  r.reference_keyframe = last_->reference_keyframe;
+  r.T_ref_frame = last_->T_ref_frame;
+  r.number = last_->number;
+  r.timestamp = last_->timestamp;
+  r.degraded = reported_state_ == TrackingState::kDegraded;
+  if (params_.refine.enabled && params_.refine.reregister) {
+    const ScalePyramid& scales = extractor_.scales();
+    for (size_t k = 0; k < last_->map_points.size(); ++k) {
+      if (map_.map_point(last_->map_points[k]) == nullptr) continue;
+      const Keypoint& kp = last_->features.keypoints[k];
+      PoseObservation o;
+      o.uv = kp.uv.cast<double>();
+      o.depth = kp.depth;
+      o.inv_sigma = scales.inv_scale[kp.octave];
+      o.depth_sigma = match_depth_sigma(kp.depth, kp.depth_slope, scales.scale[kp.octave],
+                                        params_.pose, kp.depth_sync_sigma);
+      r.observations.emplace_back(last_->map_points[k], o);
+    }
+  }
   std::lock_guard<std::mutex> lock(registry_mutex_);
-  registered_[id] = {last_->reference_keyframe, last_->T_ref_frame};
+  registered_[id] = std::move(r);
 }
 
 std::vector<CorrectedPose> Tracker::Impl::corrected_frames() {

@@ -48,6 +48,7 @@ TEST(ParamsYaml, CoversEveryField) {
   EXPECT_EQ(initialisers<t::RelocParams>(), keys["tracker.reloc"]) << "RelocParams" << fix;
   EXPECT_EQ(initialisers<t::QualityParams>(), keys["tracker.quality"]) << "QualityParams" << fix;
   EXPECT_EQ(initialisers<t::LoopParams>(), keys["tracker.loop"]) << "LoopParams" << fix;
+  EXPECT_EQ(initialisers<t::RefineParams>(), keys["tracker.refine"]) << "RefineParams" << fix;
   // TrackerParams: its scalar keys plus one per stage section.
   size_t stages = 0;
   for (const auto& [path, n] : keys) stages += path.rfind("tracker.", 0) == 0 ? 1 : 0;

@@ -134,6 +134,23 @@ struct LoopParams {
   bool final_global_ba = true;    // optimise_map() runs a global BA (offline: dqo_track's output)
 };
 
+// The final refinement of every registered frame (Tracker::optimise_map, after the global BA;
+// trajectory_refiner.h): each frame re-registered against the final map by its own feature
+// matches, then a batch smoother ties consecutive frames (at most max_gap_s apart) to a bounded
+// acceleration. σ of a frame's measured pose: sigma_m, sigma_deg (× degraded_sigma_scale for a
+// frame reported degraded).
+struct RefineParams {
+  bool enabled = true;
+  bool reregister = true;            // pose-only against the final map; false: follow the keyframe
+  double sigma_m = 0.005;
+  double sigma_deg = 0.5;
+  double degraded_sigma_scale = 10.0;
+  double acceleration_sigma = 3.0;               // m/s²
+  double angular_acceleration_sigma_deg = 300.0; // °/s²
+  double max_gap_s = 0.2;
+  int iterations = 20;
+};
+
 struct RelocParams {
   int candidate_keyframes = 20;   // matched by descriptor against this many recent/covisible
   int min_inliers = 30;
@@ -184,6 +201,7 @@ struct TrackerParams {
   LocalBaParams local_ba;
   RelocParams reloc;
   LoopParams loop;
+  RefineParams refine;
   SearchParams search;
   QualityParams quality;
   bool use_dense = true;        // fuse dense depth alignment with the features
