@@ -131,6 +131,7 @@ Section schema(TrackingConfig& c) {
                               {
                                   {"enabled", &t.refine.enabled},
                                   {"reregister", &t.refine.reregister},
+                                  {"full_ba", &t.refine.full_ba},
                                   {"sigma_m", &t.refine.sigma_m, 1e-6, kInf},
                                   {"sigma_deg", &t.refine.sigma_deg, 1e-6, 180.0},
                                   {"degraded_sigma_scale", &t.refine.degraded_sigma_scale, 1.0, kInf},

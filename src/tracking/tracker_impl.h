@@ -64,6 +64,9 @@ struct RegisteredFrame {
   uint64_t number = 0;
   double timestamp = 0.0;
   bool degraded = false;
+  // Its depth was captured apart from its colour: the features alone gave its pose (no dense
+  // support), which the final refinement re-estimates; other frames follow their keyframe.
+  bool features_only = false;
   std::vector<std::pair<uint64_t, PoseObservation>> observations;  // (map point, its keypoint)
 };
 

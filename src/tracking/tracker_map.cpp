@@ -322,7 +322,9 @@ void Tracker::Impl::register_frame(uint64_t id) {
   r.number = last_->number;
   r.timestamp = last_->timestamp;
   r.degraded = reported_state_ == TrackingState::kDegraded;
-  if (params_.refine.enabled && params_.refine.reregister) {
+  r.features_only = depth_asynchronous_;
+  if (params_.refine.enabled && r.features_only &&
+      (params_.refine.reregister || params_.refine.full_ba)) {
     const ScalePyramid& scales = extractor_.scales();
     for (size_t k = 0; k < last_->map_points.size(); ++k) {
       if (map_.map_point(last_->map_points[k]) == nullptr) continue;

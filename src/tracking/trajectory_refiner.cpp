@@ -15,7 +15,10 @@ namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
 
-// Three consecutive poses, each as (q_cw, t_cw) (residuals.h).
+// Three consecutive poses, each as (q_cw, t_cw) (residuals.h). The prior is constant velocity on
+// SE(3) (ORB-SLAM2's motion model): each step's motion in the camera's own frame, per second,
+// changes little from one step to the next. A camera orbiting at a steady rate has zero residual
+// however fast it turns; a hand-held camera's jolts are what σ allows.
 struct AccelerationCost {
   AccelerationCost(double dt1, double dt2, double inv_sigma_a, double inv_sigma_alpha)
       : dt1_(dt1), dt2_(dt2), inv_sigma_a_(inv_sigma_a), inv_sigma_alpha_(inv_sigma_alpha) {}
@@ -27,24 +30,23 @@ struct AccelerationCost {
     using V = Eigen::Matrix<T, 3, 1>;
     const Eigen::Map<const Q> qa(q0), qb(q1), qc(q2);
     const Eigen::Map<const V> ta(t0), tb(t1), tc(t2);
-    // Camera centres and orientations in the world.
-    const Q wa = qa.conjugate(), wb = qb.conjugate(), wc = qc.conjugate();
-    const V ca = -(wa * ta), cb = -(wb * tb), cc = -(wc * tc);
-    const T mean_dt = T(0.5 * (dt1_ + dt2_));
-    const V v1 = (cb - ca) / T(dt1_);
-    const V v2 = (cc - cb) / T(dt2_);
-    const V a = (v2 - v1) / mean_dt;
-    auto rotation_vector = [](Q q) {
+    // T_prev,next = T_prev,w T_w,next: rotation q_prev q_next⁻¹, translation t_prev − R t_next.
+    auto step = [](const Eigen::Map<const Q>& q_prev, const Eigen::Map<const V>& t_prev,
+                   const Eigen::Map<const Q>& q_next, const Eigen::Map<const V>& t_next, T dt) {
+      Q q = q_prev * q_next.conjugate();
+      const V t = t_prev - q * t_next;
       if (q.w() < T(0.0)) q.coeffs() = -q.coeffs();
-      return V(T(2.0) * q.vec());
+      Eigen::Matrix<T, 6, 1> xi;
+      xi.template head<3>() = t / dt;
+      xi.template tail<3>() = T(2.0) * q.vec() / dt;
+      return xi;
     };
-    // Each step's rotation in the world frame: R_w,next R_w,prev⁻¹.
-    const V w1 = rotation_vector(wb * wa.conjugate()) / T(dt1_);
-    const V w2 = rotation_vector(wc * wb.conjugate()) / T(dt2_);
-    const V alpha = (w2 - w1) / mean_dt;
+    const Eigen::Matrix<T, 6, 1> xi1 = step(qa, ta, qb, tb, T(dt1_));
+    const Eigen::Matrix<T, 6, 1> xi2 = step(qb, tb, qc, tc, T(dt2_));
+    const T mean_dt = T(0.5 * (dt1_ + dt2_));
     for (int i = 0; i < 3; ++i) {
-      r[i] = a[i] * T(inv_sigma_a_);
-      r[3 + i] = alpha[i] * T(inv_sigma_alpha_);
+      r[i] = (xi2[i] - xi1[i]) / mean_dt * T(inv_sigma_a_);
+      r[3 + i] = (xi2[3 + i] - xi1[3 + i]) / mean_dt * T(inv_sigma_alpha_);
     }
     return true;
   }

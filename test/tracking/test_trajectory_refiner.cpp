@@ -1,5 +1,4 @@
-// The final trajectory refinement: the acceleration residual against finite differences of a
-// known motion, and the smoother on a synthetic trajectory with per-frame noise and one frame far
+// The final trajectory refinement: the acceleration residual against known motions, and the smoother on a synthetic trajectory with per-frame noise and one frame far
 // off (reported degraded): closer to the truth than the measurements, the degraded frame carried
 // by its neighbours; frames further apart than max_gap_s are left as measured.
 #include <cmath>
@@ -28,12 +27,16 @@ TEST(TrajectoryRefiner, AccelerationResidualMatchesTheMotion) {
   RefineParams p;
   p.acceleration_sigma = 1.0;
   p.angular_acceleration_sigma_deg = 180.0 / M_PI;  // 1 rad/s²: the residual is α itself
-  // Constant velocity and constant rotation rate: zero.
-  const Eigen::Quaterniond step(Eigen::AngleAxisd(0.02, Eigen::Vector3d(1, 2, 3).normalized()));
-  const SE3 T0(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0));
-  const SE3 T1(step, Eigen::Vector3d(0.01, 0.02, 0.0));
-  const SE3 T2(step * step, Eigen::Vector3d(0.02, 0.04, 0.0));
+  // Constant velocity on SE(3) (the same step in the camera's frame), however fast: zero.
+  const Eigen::Quaterniond step(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()));
+  const SE3 D(step, Eigen::Vector3d(0.1, 0.02, -0.05));
+  const SE3 T0(Eigen::Quaterniond(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitX())),
+               Eigen::Vector3d(1.0, 2.0, 3.0));
+  const SE3 T1 = T0 * D, T2 = T1 * D;
   EXPECT_LT(acceleration_residual(T0, T1, T2, 0.033, 0.033, p).norm(), 1e-9);
+  // The same steps at twice the time apart in the second: the velocity halves.
+  const Eigen::Matrix<double, 6, 1> slower = acceleration_residual(T0, T1, T2, 0.033, 0.066, p);
+  EXPECT_GT(slower.norm(), 1.0);
   // A known translation acceleration: c(t) = ½ a t².
   const Eigen::Vector3d a(0.5, -1.0, 2.0);
   const double dt = 0.03;

@@ -142,6 +142,9 @@ struct LoopParams {
 struct RefineParams {
   bool enabled = true;
   bool reregister = true;            // pose-only against the final map; false: follow the keyframe
+  // Ok frames join the global bundle adjustment (their matches refine the points too) in place of
+  // the pose-only re-registration.
+  bool full_ba = true;
   double sigma_m = 0.005;
   double sigma_deg = 0.5;
   double degraded_sigma_scale = 10.0;
