@@ -148,8 +148,8 @@ struct RefineParams {
   double sigma_m = 0.005;
   double sigma_deg = 0.5;
   double degraded_sigma_scale = 10.0;
-  double acceleration_sigma = 3.0;               // m/s²
-  double angular_acceleration_sigma_deg = 300.0; // °/s²
+  double acceleration_sigma = 1.0;               // m/s²
+  double angular_acceleration_sigma_deg = 100.0; // °/s²
   double max_gap_s = 0.2;
   int iterations = 20;
 };
