@@ -51,6 +51,12 @@ struct AccelerationCost {
     return true;
   }
 
+  static ceres::CostFunction* Create(double dt1, double dt2, double inv_sigma_a,
+                                     double inv_sigma_alpha) {
+    return new ceres::AutoDiffCostFunction<AccelerationCost, 6, 4, 3, 4, 3, 4, 3>(
+        new AccelerationCost(dt1, dt2, inv_sigma_a, inv_sigma_alpha));
+  }
+
   double dt1_, dt2_, inv_sigma_a_, inv_sigma_alpha_;
 };
 
@@ -110,11 +116,10 @@ std::vector<SE3> refine_trajectory(const std::vector<RefinerFrame>& frames, cons
     const double dt1 = frames[i].timestamp - frames[i - 1].timestamp;
     const double dt2 = frames[i + 1].timestamp - frames[i].timestamp;
     if (dt1 <= 1e-6 || dt2 <= 1e-6 || dt1 > p.max_gap_s || dt2 > p.max_gap_s) continue;
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<AccelerationCost, 6, 4, 3, 4, 3, 4, 3>(
-            new AccelerationCost(dt1, dt2, inv_sigma_a, inv_sigma_alpha)),
-        nullptr, q[i - 1].coeffs().data(), t[i - 1].data(), q[i].coeffs().data(), t[i].data(),
-        q[i + 1].coeffs().data(), t[i + 1].data());
+    problem.AddResidualBlock(AccelerationCost::Create(dt1, dt2, inv_sigma_a, inv_sigma_alpha),
+                             nullptr, q[i - 1].coeffs().data(), t[i - 1].data(),
+                             q[i].coeffs().data(), t[i].data(), q[i + 1].coeffs().data(),
+                             t[i + 1].data());
     ++tied;
   }
   if (tied == 0) return out;
