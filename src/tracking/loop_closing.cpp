@@ -20,14 +20,21 @@ constexpr int kRankMaxDistance = kHammingLow;
 constexpr double kEdgeSigmaT = 0.01;
 constexpr double kEdgeSigmaR = 0.01;
 
-int count_matches(const KeyFrame& query, const KeyFrame& candidate, const MapStore& map) {
+int count_matches(const std::vector<Descriptor>& query, const KeyFrame& candidate,
+                  const MapStore& map) {
   std::vector<Descriptor> train;
   for (size_t i = 0; i < candidate.map_points.size(); ++i)
     if (map.map_point(candidate.map_points[i]) != nullptr)
       train.push_back(candidate.features.descriptors[i]);
   if (train.empty()) return 0;
-  return static_cast<int>(
-      match_descriptors(query.features.descriptors, train, kRankRatio, kRankMaxDistance).size());
+  return static_cast<int>(match_descriptors(query, train, kRankRatio, kRankMaxDistance).size());
+}
+
+// The most matched first; ties by the older keyframe (deterministic).
+void sort_ranked(std::vector<std::pair<int, uint64_t>>* ranked) {
+  std::sort(ranked->begin(), ranked->end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second < b.second;
+  });
 }
 
 }  // namespace
@@ -58,15 +65,28 @@ LoopDetection detect_loop(const MapStore& map, uint64_t query, const PinholeCame
   if (q == nullptr) return d;
   const std::vector<uint64_t> candidates = loop_candidates(map, query, params);
   d.candidates = static_cast<int>(candidates.size());
+  const std::vector<Descriptor>& all = q->features.descriptors;
+  // First step: a sample of the query's descriptors against every candidate.
+  std::vector<uint64_t> shortlist = candidates;
+  const size_t sample = static_cast<size_t>(std::max(0, params.sample_descriptors));
+  const size_t keep = 4 * static_cast<size_t>(std::max(1, params.max_verify));
+  if (sample > 0 && sample < all.size() && candidates.size() > keep) {
+    std::vector<Descriptor> sampled;
+    for (size_t i = 0; i < sample; ++i) sampled.push_back(all[i * all.size() / sample]);
+    std::vector<std::pair<int, uint64_t>> coarse;
+    for (const uint64_t id : candidates)
+      coarse.emplace_back(count_matches(sampled, *map.keyframe(id), map), id);
+    sort_ranked(&coarse);
+    coarse.resize(keep);
+    shortlist.clear();
+    for (const auto& [n, id] : coarse) shortlist.push_back(id);
+  }
   std::vector<std::pair<int, uint64_t>> ranked;  // (matches, keyframe)
-  for (const uint64_t id : candidates) {
-    const int n = count_matches(*q, *map.keyframe(id), map);
+  for (const uint64_t id : shortlist) {
+    const int n = count_matches(all, *map.keyframe(id), map);
     if (n >= params.min_matches) ranked.emplace_back(n, id);
   }
-  // The most matched first; ties by the older keyframe (deterministic).
-  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) {
-    return a.first != b.first ? a.first > b.first : a.second < b.second;
-  });
+  sort_ranked(&ranked);
   if (!ranked.empty()) d.best_matches = ranked.front().first;
   const size_t tries = std::min(ranked.size(), static_cast<size_t>(std::max(1, params.max_verify)));
   for (size_t i = 0; i < tries; ++i) {

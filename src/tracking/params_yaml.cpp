@@ -118,6 +118,7 @@ Section schema(TrackingConfig& c) {
                                   {"enabled", &t.loop.enabled},
                                   {"min_keyframe_gap", &t.loop.min_keyframe_gap, 1, 100000},
                                   {"min_matches", &t.loop.min_matches, 4, 100000},
+                                  {"sample_descriptors", &t.loop.sample_descriptors, 0, 100000},
                                   {"max_verify", &t.loop.max_verify, 1, 1000},
                                   {"min_inliers", &t.loop.min_inliers, 4, 100000},
                                   {"pose_graph_iterations", &t.loop.pose_graph_iterations, 1, 10000},

@@ -303,6 +303,24 @@ TEST(LoopClosing, FindsTheLoopWhereTheCameraComesBackAndCorrectsTheDrift) {
   EXPECT_FALSE(detect_loop(m.map, last, camera(), scales, PoseOptimiserParams{}, params).found);
 }
 
+TEST(LoopClosing, RankingInTwoStepsFindsTheSameLoop) {
+  const SyntheticMap m = build_map(full_turn(), drift_step(), 3, 15);
+  const ScalePyramid scales(1.2f, 8);
+  const uint64_t last = m.truth.size();
+  LoopParams all;
+  all.sample_descriptors = 0;
+  all.max_verify = 1;
+  LoopParams sampled = all;
+  sampled.sample_descriptors = 50;  // a shortlist of 4 of the candidates, from 50 descriptors
+  const LoopDetection a = detect_loop(m.map, last, camera(), scales, PoseOptimiserParams{}, all);
+  const LoopDetection b = detect_loop(m.map, last, camera(), scales, PoseOptimiserParams{}, sampled);
+  ASSERT_GT(a.candidates, 4);
+  ASSERT_TRUE(a.found);
+  ASSERT_TRUE(b.found);
+  EXPECT_EQ(a.match, b.match);
+  EXPECT_EQ(a.best_matches, b.best_matches);
+}
+
 TEST(LoopClosing, GlobalBundleAdjustmentKeepsTheLoopClosed) {
   SyntheticMap m = build_map(full_turn(), drift_step(), 3, 12);
   const ScalePyramid scales(1.2f, 8);

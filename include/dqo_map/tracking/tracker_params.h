@@ -125,6 +125,10 @@ struct LoopParams {
   bool enabled = true;
   int min_keyframe_gap = 10;      // a candidate is at least this many keyframes older than the query
   int min_matches = 60;           // descriptor matches (ratio test, orientation) to be verified
+  // Ranking in two steps, so that its cost grows slowly with the map: every candidate against
+  // this many of the query's descriptors (evenly spread; 0: all of them), then the best
+  // shortlist (4 x max_verify) against all of them.
+  int sample_descriptors = 200;
   int max_verify = 3;             // candidates, the best matched first, given to PnP RANSAC
   int min_inliers = 80;           // PnP inliers (after refinement with depth) for a loop
   int pose_graph_iterations = 20;
