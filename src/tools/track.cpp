@@ -4,7 +4,9 @@
 // tracking time per frame, the lost frames and, where the dataset has ground truth, the ATE.
 //
 //   dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]
-//             [--camera camera.yaml] [--states states.txt]
+//             [--camera camera.yaml] [--states states.txt] [--online]
+// The trajectory written is the one after the tracker's final global bundle adjustment and
+// refinement (Tracker::optimise_map), unless --online; the states are always the online ones.
 // Images with lens distortion (camera.yaml's distortion_model and distortion) are undistorted
 // first, as tracking_node does with a CameraInfo.
 #include <algorithm>
@@ -35,7 +37,7 @@ using dqo::median;
 
 constexpr char kUsage[] =
     "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]\n"
-    "                 [--camera camera.yaml] [--states states.txt] [--verbose]\n"
+    "                 [--camera camera.yaml] [--states states.txt] [--online] [--verbose]\n"
     "  DATASET_DIR        own format (camera.yaml, rgb/), TUM RGB-D (rgb.txt, depth.txt) or Replica\n"
     "  --out traj.txt     the estimated trajectory, TUM format (T_world_camera of tracked frames)\n"
     "  --config FILE      tracking parameters (default: the built-in ones, as config/tracking.yaml)\n"
