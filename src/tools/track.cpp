@@ -4,10 +4,13 @@
 // tracking time per frame, the lost frames and, where the dataset has ground truth, the ATE.
 //
 //   dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]
-//             [--camera camera.yaml] [--states states.txt]
+//             [--camera camera.yaml] [--states states.txt] [--online]
+// The trajectory written is the one after the tracker's final global bundle adjustment and
+// refinement (Tracker::optimise_map), unless --online; the states are always the online ones.
 // Images with lens distortion (camera.yaml's distortion_model and distortion) are undistorted
 // first, as tracking_node does with a CameraInfo.
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -34,7 +37,7 @@ using dqo::median;
 
 constexpr char kUsage[] =
     "usage: dqo_track DATASET_DIR --out traj.txt [--config tracking.yaml] [--frames N] [--every K]\n"
-    "                 [--camera camera.yaml] [--states states.txt] [--verbose]\n"
+    "                 [--camera camera.yaml] [--states states.txt] [--online] [--verbose]\n"
     "  DATASET_DIR        own format (camera.yaml, rgb/), TUM RGB-D (rgb.txt, depth.txt) or Replica\n"
     "  --out traj.txt     the estimated trajectory, TUM format (T_world_camera of tracked frames)\n"
     "  --config FILE      tracking parameters (default: the built-in ones, as config/tracking.yaml)\n"
@@ -45,8 +48,14 @@ constexpr char kUsage[] =
     "  --states FILE      each tracked frame's state, reasons and evidence, one line per frame\n"
     "                     (lost ones too; format: include/dqo_map/tracking/frame_states.h)\n"
     "  --verbose          one line per frame on stderr: state, its evidence and reasons\n"
+    "  --online           write each frame's pose as tracking gave it (default: after the final\n"
+    "                     global bundle adjustment, tracking.loop.final_global_ba, each frame\n"
+    "                     following its reference keyframe; the states stay the online ones)\n"
     "Prints the frames per state (ok, degraded, lost) and why frames were not ok. The trajectory\n"
     "holds the ok and degraded frames (lost frames have no pose).\n";
+
+// register_frame IDs for dqo_track's own frames, apart from the session's mapping keyframe IDs.
+constexpr uint64_t kFrameIdBase = uint64_t{1} << 40;
 
 struct Options {
   std::string dataset;
@@ -57,6 +66,7 @@ struct Options {
   int frames = -1;
   int every = 1;
   bool verbose = false;
+  bool online = false;
 };
 
 int usage_error(const std::string& message) {
@@ -77,6 +87,8 @@ int main(int argc, char** argv) {
       return 0;
     } else if (a == "--verbose") {
       o.verbose = true;
+    } else if (a == "--online") {
+      o.online = true;
     } else if (a == "--out" || a == "--config" || a == "--frames" || a == "--every" ||
                a == "--camera" || a == "--states") {
       const char* v = value();
@@ -170,6 +182,7 @@ int main(int argc, char** argv) {
   std::vector<double> ms;
   int ok = 0, degraded = 0, lost = 0, not_initialised = 0, relocalised = 0, skipped = 0;
   std::map<std::string, int> reasons;  // why frames were degraded or lost
+  dqo::tracking::Tracker* tracker_of_frames = nullptr;
   dqo::ProgressBar progress("tracking", count);
   // Reading (PNG decoding) of frame i + 1 overlaps tracking of frame i.
   auto read = [&](int i) {
@@ -213,11 +226,21 @@ int main(int argc, char** argv) {
         ++degraded;
         estimate.emplace_back(frame->timestamp, r.track.T_wc);
         break;
+      default:
+        break;
+    }
+    if (dqo::tracking::has_pose(r.track.state) && session.tracker() != nullptr && !o.online) {
+      session.tracker()->register_frame(kFrameIdBase + estimate.size() - 1);
+      tracker_of_frames = session.tracker();
+    }
+    switch (r.track.state) {
       case dqo::tracking::TrackingState::kLost:
         ++lost;
         break;
       case dqo::tracking::TrackingState::kNotInitialised:
         ++not_initialised;
+        break;
+      default:
         break;
     }
     if (r.track.state != dqo::tracking::TrackingState::kOk) {
@@ -236,6 +259,20 @@ int main(int argc, char** argv) {
     progress.update(j + 1);
   }
 
+  // The final global adjustment: each frame where its reference keyframe ended up (ORB-SLAM2
+  // saves its trajectory so). A tracker restarted by a reset starts a new map: its frames only.
+  double final_ba_ms = 0.0;
+  int refined = 0;
+  if (!o.online && tracker_of_frames != nullptr && tracker_of_frames == session.tracker()) {
+    const auto start = std::chrono::steady_clock::now();
+    session.tracker()->optimise_map();
+    for (const dqo::tracking::CorrectedPose& c : session.tracker()->corrected_frames()) {
+      if (c.id < kFrameIdBase || c.id - kFrameIdBase >= estimate.size()) continue;
+      estimate[c.id - kFrameIdBase].second = c.T_wc;
+      ++refined;
+    }
+    final_ba_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  }
   if (!dqo::write_tum_trajectory(o.out, estimate, &error)) {
     std::fprintf(stderr, "dqo_track: %s\n", error.c_str());
     return 1;
@@ -261,6 +298,13 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(session.keyframes()), tracker ? tracker->num_map_points() : size_t{0});
   std::printf("local_ba_runs: %llu\n",
               static_cast<unsigned long long>(tracker ? tracker->local_ba_runs() : 0));
+  if (tracker) {
+    const dqo::tracking::LoopStats loops = tracker->loop_stats();
+    std::printf("loops: %llu closed of %llu keyframes checked, %.1f ms in total\n",
+                static_cast<unsigned long long>(loops.closed),
+                static_cast<unsigned long long>(loops.queries), loops.milliseconds);
+  }
+  if (!o.online) std::printf("final global BA: %d frames refined, %.1f ms\n", refined, final_ba_ms);
   std::printf("wrote: %s\n", o.out.c_str());
   if (!o.states.empty()) std::printf("wrote: %s\n", o.states.c_str());
   if (ground_truth.size() >= 3 && estimate.size() >= 3) {

@@ -68,6 +68,7 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
   } else {
     apply_ba_results();
   }
+  close_pending_loop();
   submit_local_ba();
   // The previous frame's pose, after any correction above: the anchor's if it becomes one.
   const SE3 T_wc_previous = last_ ? last_->T_wc : SE3();
@@ -80,6 +81,7 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
                             params_.pose.max_depth_gap_s;
   TrackedFrame frame;
   frame.number = ++frame_counter_;
+  frame.timestamp = input.timestamp;
   if (params_.use_features) extractor_.extract(*input.rgb, *input.depth, &frame.features);
   if (depth_asynchronous_) mark_asynchronous_depth(&frame);
   frame.map_points.assign(frame.features.size(), kNoId);
@@ -857,5 +859,9 @@ TrackingState Tracker::state() const { return impl_->reported_state_.load(); }
 size_t Tracker::num_keyframes() const { return impl_->map_.num_keyframes(); }
 size_t Tracker::num_map_points() const { return impl_->map_.num_map_points(); }
 uint64_t Tracker::local_ba_runs() const { return impl_->ba_runs_.load(); }
+void Tracker::optimise_map() { impl_->optimise_map(); }
+LoopStats Tracker::loop_stats() const {
+  return {impl_->loop_queries_.load(), impl_->loops_closed_.load(), impl_->loop_milliseconds_};
+}
 
 }  // namespace dqo::tracking

@@ -27,6 +27,7 @@ namespace dqo::tracking {
 // One frame as tracking sees it.
 struct TrackedFrame {
   uint64_t number = 0;  // the tracker's frame counter
+  double timestamp = 0.0;
   OrbFrame features;
   std::vector<uint64_t> map_points;  // per keypoint: its matched map point (inliers), or kNoId
   SE3 T_wc;
@@ -59,6 +60,14 @@ struct Refinement {
 struct RegisteredFrame {
   uint64_t reference_keyframe = kNoId;
   SE3 T_ref_frame;
+  // For the final refinement (RefineParams, tracker_loop.cpp).
+  uint64_t number = 0;
+  double timestamp = 0.0;
+  bool degraded = false;
+  // Its depth was captured apart from its colour: the features alone gave its pose (no dense
+  // support), which the final refinement re-estimates; other frames follow their keyframe.
+  bool features_only = false;
+  std::vector<std::pair<uint64_t, PoseObservation>> observations;  // (map point, its keypoint)
 };
 
 struct Tracker::Impl {
@@ -109,6 +118,8 @@ struct Tracker::Impl {
   void submit_local_ba();
   void apply_ba_results();
   void apply_ba_result(const LocalBaResult& result);
+  // The last frame and the registered frames follow their reference keyframes' new poses.
+  void follow_keyframes(const std::unordered_map<uint64_t, SE3>& moved);
   void register_frame(uint64_t id);
   std::vector<CorrectedPose> corrected_frames();
   void reset();
@@ -175,6 +186,16 @@ struct Tracker::Impl {
   std::unordered_map<uint64_t, RegisteredFrame> registered_;
   std::map<uint64_t, SE3> corrections_;  // frame ID -> corrected T_wc, the latest wins
   std::atomic<uint64_t> ba_runs_{0};       // adjustments applied to the map
+
+  // ---- tracker_loop.cpp: loop closing (loop_closing.h) and the global adjustment
+  void close_pending_loop();
+  void run_global_ba(int iterations);
+  void optimise_map();
+  void refine_registered_frames();
+  uint64_t loop_query_ = kNoId;  // the newest keyframe, for place recognition on the next frame
+  std::atomic<uint64_t> loops_closed_{0};
+  std::atomic<uint64_t> loop_queries_{0};
+  double loop_milliseconds_ = 0.0;  // place recognition and corrections, in total
 };
 
 }  // namespace dqo::tracking

@@ -102,6 +102,7 @@ void Tracker::Impl::create_keyframe(TrackedFrame* frame) {
   last_keyframe_frame_ = frame->number;
   reference_keyframe_ = id;
   run_local_ba(id);
+  loop_query_ = id;  // place recognition at the start of the next frame (tracker_loop.cpp)
 }
 
 void Tracker::Impl::create_points(uint64_t keyframe_id, TrackedFrame* frame) {
@@ -292,6 +293,10 @@ void Tracker::Impl::apply_ba_result(const LocalBaResult& result) {
   for (const auto& [id, p_w] : result.points)
     if (MapPoint* p = map_.map_point(id)) p->p_w = p_w;
   for (const auto& [kf, point] : result.outliers) map_.erase_observation(point, kf);
+  follow_keyframes(moved);
+}
+
+void Tracker::Impl::follow_keyframes(const std::unordered_map<uint64_t, SE3>& moved) {
   // The last frame follows its reference keyframe (ORB-SLAM2), so the next frame's motion model
   // and dense prior start from where the adjusted map says it was. This only helps because the
   // adjustment keeps the dense odometry between keyframes (OdometryCost): without it the
@@ -311,8 +316,30 @@ void Tracker::Impl::apply_ba_result(const LocalBaResult& result) {
 void Tracker::Impl::register_frame(uint64_t id) {
   if (!last_ || !has_pose(reported_state_) || map_.keyframe(last_->reference_keyframe) == nullptr)
     return;
+  RegisteredFrame r;
+  r.reference_keyframe = last_->reference_keyframe;
+  r.T_ref_frame = last_->T_ref_frame;
+  r.number = last_->number;
+  r.timestamp = last_->timestamp;
+  r.degraded = reported_state_ == TrackingState::kDegraded;
+  r.features_only = depth_asynchronous_;
+  if (params_.refine.enabled && r.features_only &&
+      (params_.refine.reregister || params_.refine.full_ba)) {
+    const ScalePyramid& scales = extractor_.scales();
+    for (size_t k = 0; k < last_->map_points.size(); ++k) {
+      if (map_.map_point(last_->map_points[k]) == nullptr) continue;
+      const Keypoint& kp = last_->features.keypoints[k];
+      PoseObservation o;
+      o.uv = kp.uv.cast<double>();
+      o.depth = kp.depth;
+      o.inv_sigma = scales.inv_scale[kp.octave];
+      o.depth_sigma = match_depth_sigma(kp.depth, kp.depth_slope, scales.scale[kp.octave],
+                                        params_.pose, kp.depth_sync_sigma);
+      r.observations.emplace_back(last_->map_points[k], o);
+    }
+  }
   std::lock_guard<std::mutex> lock(registry_mutex_);
-  registered_[id] = {last_->reference_keyframe, last_->T_ref_frame};
+  registered_[id] = std::move(r);
 }
 
 std::vector<CorrectedPose> Tracker::Impl::corrected_frames() {
@@ -359,6 +386,7 @@ void Tracker::Impl::reset() {
   ba_wanted_ = kNoId;
   ba_outstanding_ = false;
   ba_due_frame_ = 0;
+  loop_query_ = kNoId;
   odometry_covariance_.setZero();
   odometry_valid_ = false;
   std::lock_guard<std::mutex> lock(registry_mutex_);

@@ -95,6 +95,13 @@ struct CorrectedPose {
   SE3 T_wc;
 };
 
+// Loop closing so far (TrackerParams::loop).
+struct LoopStats {
+  uint64_t queries = 0;        // keyframes checked for a loop
+  uint64_t closed = 0;         // loops found, verified and corrected
+  double milliseconds = 0.0;   // spent in place recognition and corrections, in total
+};
+
 class Tracker {
  public:
   Tracker(const PinholeCamera& camera, const TrackerParams& params);
@@ -122,6 +129,12 @@ class Tracker {
   // Blocks until the local BA worker is idle and applies what it finished (tests, the end of an
   // offline run). Call on the thread that calls track().
   void wait_for_mapping();
+
+  // The end of a run (offline): waits for local BA, then one global bundle adjustment over every
+  // keyframe and map point (LoopParams::final_global_ba); registered frames follow their reference
+  // keyframes (corrected_frames()). On the thread that calls track().
+  void optimise_map();
+  LoopStats loop_stats() const;  // on the tracker's thread
 
   TrackingState state() const;  // any thread
   // The tracker's own map (not the mapping keyframes); on the tracker's thread.

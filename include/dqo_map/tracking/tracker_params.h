@@ -116,6 +116,48 @@ struct LocalBaParams {
   bool deterministic = false;
 };
 
+// Loop closing over the tracker's keyframes (loop_closing.h): each new keyframe is matched by
+// descriptor against older keyframes it shares no map point with; the best are verified by PnP
+// RANSAC with depth; a verified loop corrects every keyframe by a pose graph (SE(3)) and then a
+// global bundle adjustment. Runs on the tracker's thread at the start of the frame after the
+// keyframe (deterministic). optimise_map() (the end of an offline run) adjusts the whole map once more.
+struct LoopParams {
+  bool enabled = true;
+  int min_keyframe_gap = 10;      // a candidate is at least this many keyframes older than the query
+  int min_matches = 60;           // descriptor matches (ratio test, orientation) to be verified
+  // Ranking in two steps, so that its cost grows slowly with the map: every candidate against
+  // this many of the query's descriptors (evenly spread; 0: all of them), then the best
+  // shortlist (4 x max_verify) against all of them.
+  int sample_descriptors = 200;
+  int max_verify = 3;             // candidates, the best matched first, given to PnP RANSAC
+  int min_inliers = 80;           // PnP inliers (after refinement with depth) for a loop
+  int pose_graph_iterations = 20;
+  int min_edge_shared = 30;       // covisibility edges of the pose graph: at least this many shared points
+  bool global_ba = true;          // a global bundle adjustment after each loop correction
+  int global_ba_iterations = 10;
+  bool final_global_ba = true;    // optimise_map() runs a global BA (offline: dqo_track's output)
+};
+
+// The final refinement of every registered frame (Tracker::optimise_map, after the global BA;
+// trajectory_refiner.h): each frame re-registered against the final map by its own feature
+// matches, then a batch smoother ties consecutive frames (at most max_gap_s apart) to a bounded
+// acceleration. σ of a frame's measured pose: sigma_m, sigma_deg (× degraded_sigma_scale for a
+// frame reported degraded).
+struct RefineParams {
+  bool enabled = true;
+  bool reregister = true;            // pose-only against the final map; false: follow the keyframe
+  // Ok frames join the global bundle adjustment (their matches refine the points too) in place of
+  // the pose-only re-registration.
+  bool full_ba = true;
+  double sigma_m = 0.005;
+  double sigma_deg = 0.5;
+  double degraded_sigma_scale = 10.0;
+  double acceleration_sigma = 1.0;               // m/s²
+  double angular_acceleration_sigma_deg = 100.0; // °/s²
+  double max_gap_s = 0.2;
+  int iterations = 20;
+};
+
 struct RelocParams {
   int candidate_keyframes = 20;   // matched by descriptor against this many recent/covisible
   int min_inliers = 30;
@@ -165,6 +207,8 @@ struct TrackerParams {
   KeyframeParams keyframes;
   LocalBaParams local_ba;
   RelocParams reloc;
+  LoopParams loop;
+  RefineParams refine;
   SearchParams search;
   QualityParams quality;
   bool use_dense = true;        // fuse dense depth alignment with the features

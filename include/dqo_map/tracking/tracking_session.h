@@ -58,6 +58,7 @@ class TrackingSession {
 
   TrackingState state() const { return state_; }
   const Tracker* tracker() const { return tracker_.get(); }
+  Tracker* tracker() { return tracker_.get(); }  // register_frame, optimise_map (offline tools)
   uint64_t keyframes() const { return next_keyframe_id_ - 1; }
 
  private:
