@@ -111,6 +111,7 @@ OfflineResult run_offline_mapping(const FrameSource& source, const OfflineStages
       ObjectStageOutput objects = stages.objects ? stages.objects(kf, *frame)
                                                  : ground_truth_objects(*frame, source.info());
       objects.keyframe_objects.keyframe_id = kf.id;
+      if (stages.objects && stages.object_feedback) stages.object_feedback(objects);
       result.timings.objects_ms.push_back(objects.ms);
       // In the order the ROS nodes publish: the keyframe, its events, the objects, its objects.
       keyframe_work = [kf = std::move(kf), objects = std::move(objects)](

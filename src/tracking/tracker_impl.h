@@ -18,6 +18,7 @@
 #include "local_ba.h"
 #include "map_store.h"
 #include "matching.h"
+#include "object_factors.h"
 #include "orb_frame.h"
 #include "pose_optimiser.h"
 #include "tracking_quality.h"
@@ -170,6 +171,8 @@ struct Tracker::Impl {
   // frame relative to it); invalid once a frame went without dense alignment.
   Eigen::Matrix<double, 6, 6> odometry_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
   bool odometry_valid_ = false;
+
+  ObjectLandmarkStore objects_;  // objects as landmarks (object_factors.h)
 
   std::mutex registry_mutex_;  // guards the two below (corrected_frames() is thread-safe)
   std::unordered_map<uint64_t, RegisteredFrame> registered_;

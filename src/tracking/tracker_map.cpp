@@ -230,6 +230,13 @@ LocalBaProblem Tracker::Impl::local_ba_problem(uint64_t keyframe_id) const {
       problem.observations.push_back(o);
     }
   }
+  if (params_.objects.enabled) {
+    for (size_t i = 0; i < problem.keyframes.size(); ++i) {
+      if (problem.keyframes[i].fixed) continue;
+      objects_.observations(problem.keyframes[i].id, static_cast<int>(i), problem.keyframes[i].T_wc,
+                            camera_, params_.objects, &problem.objects);
+    }
+  }
   return problem;
 }
 
@@ -361,6 +368,7 @@ void Tracker::Impl::reset() {
   ba_due_frame_ = 0;
   odometry_covariance_.setZero();
   odometry_valid_ = false;
+  objects_.clear();  // the objects and keyframes of the old map's world
   std::lock_guard<std::mutex> lock(registry_mutex_);
   registered_.clear();
   corrections_.clear();

@@ -44,6 +44,10 @@ struct OfflineStages {
   std::function<std::map<mapping::KeyframeId, SE3>()> corrected_poses;
   // Empty: ground_truth_objects() (the dataset's instance masks and boxes).
   std::function<ObjectStageOutput(const mapping::MappingKeyframe&, const Frame&)> objects;
+  // Objects as landmarks of the tracker: each keyframe's object stage output handed back to the
+  // pose stage right after it (before the next frame is tracked), as association_node's objects
+  // topic does live. Called only with `objects` set (never with the ground truth's objects).
+  std::function<void(const ObjectStageOutput&)> object_feedback;
 };
 
 struct OfflineMappingParams {

@@ -17,6 +17,7 @@
 #include "dqo_map/common/image.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/geometry/se3.h"
+#include "dqo_map/tracking/object_landmarks.h"
 #include "dqo_map/tracking/tracker_params.h"
 
 namespace dqo::tracking {
@@ -122,6 +123,15 @@ class Tracker {
   // Blocks until the local BA worker is idle and applies what it finished (tests, the end of an
   // offline run). Call on the thread that calls track().
   void wait_for_mapping();
+
+  // Objects as landmarks (object_landmarks.h; local BA uses them when params.objects.enabled).
+  // The object stage's newest objects, in the tracker's world frame, replacing the last set.
+  // On the tracker's thread; a reset() forgets them.
+  void set_object_landmarks(const std::vector<ObjectLandmark>& objects);
+  // The detections of registered frame `frame_id` (register_frame) associated with objects; they
+  // join the next adjustments of the frame's reference keyframe. Unknown frames are ignored.
+  void add_object_sightings(uint64_t frame_id, const std::vector<ObjectSighting>& sightings);
+  size_t num_object_landmarks() const;  // on the tracker's thread
 
   TrackingState state() const;  // any thread
   // The tracker's own map (not the mapping keyframes); on the tracker's thread.
