@@ -92,6 +92,8 @@ OfflineResult run_offline_mapping(const FrameSource& source, const OfflineStages
       if (selector.consider(frame->T_wc)) pose.keyframe = next_keyframe++;
     }
     result.timings.pose_ms.push_back(pose.ms);
+    if (!pose.state.empty()) result.states.emplace_back(frame->timestamp, pose.state);
+    result.object_costs = std::max(result.object_costs, pose.object_costs);
     if (!pose.T_wc) {
       ++result.frames_without_pose;
       if (progress) progress(n + 1, total);

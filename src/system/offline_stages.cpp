@@ -50,6 +50,9 @@ void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCam
                                     frame.depth_timestamp};
     const tracking::SessionResult r = session->track(camera, input);
     out.ms = ms_since(t0);
+    out.state = r.skipped != tracking::SessionResult::Skip::kNone ? "skipped"
+                                                                  : tracking::to_string(r.track.state);
+    if (session->tracker() != nullptr) out.object_costs = session->tracker()->object_costs_applied();
     if (r.skipped != tracking::SessionResult::Skip::kNone ||
         !tracking::has_pose(r.track.state)) {
       return out;

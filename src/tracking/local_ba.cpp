@@ -157,7 +157,7 @@ LocalBaResult solve_local_ba(const LocalBaProblem& input, const PinholeCamera& c
         if (keyframe_used[k] && !input.keyframes[k].fixed)
           blocks[k] = {kfs[k].q_cw.coeffs().data(), kfs[k].t_cw.data()};
       }
-      add_object_costs(input.objects, camera, blocks, &problem, &object_losses);
+      result.object_costs = add_object_costs(input.objects, camera, blocks, &problem, &object_losses);
     }
     if (residuals == 0) return result;
     // Gauge: the fixed keyframes (at least one, the tracker makes sure) hold the map in place;

@@ -84,6 +84,7 @@ struct LocalBaResult {
   std::vector<std::pair<uint64_t, uint64_t>> outliers;  // (keyframe ID, point ID) to unlink
   double initial_cost = 0.0;
   double final_cost = 0.0;
+  int object_costs = 0;  // object-landmark residual blocks in the last pass
   double milliseconds = 0.0;
 };
 

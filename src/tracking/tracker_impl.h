@@ -178,6 +178,7 @@ struct Tracker::Impl {
   std::unordered_map<uint64_t, RegisteredFrame> registered_;
   std::map<uint64_t, SE3> corrections_;  // frame ID -> corrected T_wc, the latest wins
   std::atomic<uint64_t> ba_runs_{0};       // adjustments applied to the map
+  uint64_t object_costs_ = 0;              // object-landmark costs in those adjustments
 };
 
 }  // namespace dqo::tracking

@@ -288,6 +288,7 @@ void Tracker::Impl::apply_ba_results() {
 void Tracker::Impl::apply_ba_result(const LocalBaResult& result) {
   if (result.generation != generation_ || !result.ok) return;
   ++ba_runs_;
+  object_costs_ += static_cast<uint64_t>(result.object_costs);
   // Only what still exists: the map may have moved on while the worker ran.
   std::unordered_map<uint64_t, SE3> moved;
   for (const auto& [id, T_wc] : result.keyframes) {

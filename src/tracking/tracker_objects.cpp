@@ -25,4 +25,6 @@ void Tracker::add_object_sightings(uint64_t frame_id, const std::vector<ObjectSi
 
 size_t Tracker::num_object_landmarks() const { return impl_->objects_.num_landmarks(); }
 
+uint64_t Tracker::object_costs_applied() const { return impl_->object_costs_; }
+
 }  // namespace dqo::tracking

@@ -27,6 +27,8 @@ struct FramePose {
   std::optional<SE3> T_wc;                      // nullopt: no pose (frame skipped)
   std::optional<mapping::KeyframeId> keyframe;  // set: the frame is mapping keyframe `keyframe`
   double ms = 0.0;                              // time the pose took (tracking)
+  std::string state;                            // the tracker's state ("ok", ...); "" without one
+  uint64_t object_costs = 0;                    // object-landmark costs in the tracker's BA so far
 };
 
 // What the object stage gives back for one keyframe.
@@ -76,6 +78,8 @@ struct OfflineResult {
   int rejected_keyframes = 0;  // refused by the mapper (bad images): logged in warnings
   std::vector<std::string> warnings;
   std::vector<std::pair<double, SE3>> trajectory;     // estimated T_wc per posed frame (by time)
+  std::vector<std::pair<double, std::string>> states; // the tracker's state per frame (with a tracker)
+  uint64_t object_costs = 0;  // object-landmark costs the tracker's bundle adjustments applied
   std::vector<std::pair<double, SE3>> ground_truth;   // the frames' ground truth, where they have it
   std::vector<mapping::MappingReport> reports;        // one per mapped keyframe
   StageTimings timings;

@@ -15,6 +15,7 @@
 #include "dqo_map/io/trajectory_io.h"
 #include "dqo_map/objects/object_mapper.h"
 #include "dqo_map/system/offline_mapping.h"
+#include "dqo_map/tracking/object_landmarks.h"
 #include "dqo_map/tracking/params_yaml.h"
 
 namespace dqo::system {

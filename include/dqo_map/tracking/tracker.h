@@ -132,6 +132,8 @@ class Tracker {
   // join the next adjustments of the frame's reference keyframe. Unknown frames are ignored.
   void add_object_sightings(uint64_t frame_id, const std::vector<ObjectSighting>& sightings);
   size_t num_object_landmarks() const;  // on the tracker's thread
+  // Object-landmark costs (keyframe, object) in the adjustments applied so far; tracker's thread.
+  uint64_t object_costs_applied() const;
 
   TrackingState state() const;  // any thread
   // The tracker's own map (not the mapping keyframes); on the tracker's thread.
