@@ -9,6 +9,7 @@
 
 #include "dqo_map/geometry/conic.h"
 #include "dqo_map/tracking/object_landmarks.h"
+#include "dqo_map/tracking/tracker.h"
 #include "local_ba.h"
 #include "object_box_cost.h"
 #include "object_factors.h"
@@ -270,6 +271,20 @@ TEST(ObjectLandmarks, TheNewestObjectSetWins) {
   store.clear();
   EXPECT_EQ(store.num_landmarks(), 0u);
   EXPECT_EQ(store.num_sightings(), 0u);
+}
+
+TEST(ObjectLandmarks, TheTrackerKeepsTheNewestSetAndForgetsItOnReset) {
+  Scene s;
+  Tracker tracker(s.camera, TrackerParams{});
+  tracker.set_object_landmarks(s.landmarks);
+  EXPECT_EQ(tracker.num_object_landmarks(), 4u);
+  tracker.set_object_landmarks({s.landmarks[0]});
+  EXPECT_EQ(tracker.num_object_landmarks(), 1u);
+  // No frame registered under 5: nothing to file the sightings under, and nothing breaks.
+  tracker.add_object_sightings(5, s.sightings);
+  EXPECT_EQ(tracker.object_costs_applied(), 0u);
+  tracker.reset();  // the objects belong to the old map's world
+  EXPECT_EQ(tracker.num_object_landmarks(), 0u);
 }
 
 }  // namespace
