@@ -17,6 +17,13 @@
 // stream/out_of_order_s) is skipped; missing topics are reported from a timer; time going further
 // backwards (a looping bag) resets tracking and clears the tf buffer (replay_tf_listener.h: no
 // TF_REPEATED_DATA flood).
+//
+// Objects as landmarks (tracker/object_landmarks/enabled): association_node's latched `objects`
+// (its confirmed objects, map frame) and `keyframe_objects` (each keyframe's detections and the
+// object each became) come back here and go to the tracker (Tracker::set_object_landmarks /
+// add_object_sightings, the calls the offline pipeline makes). Which version a keyframe uses: the
+// latest `objects` message received before its bundle adjustment is set up; objects arriving
+// before the tracker's frame is in the map (T_map_tracker) are ignored, the next message counts.
 #include <algorithm>
 #include <deque>
 #include <map>
@@ -40,7 +47,9 @@
 #include <unistd.h>
 
 #include <dqo_map/KeyFrame.h>
+#include <dqo_map/KeyFrameObjects.h>
 #include <dqo_map/KeyFramePoses.h>
+#include <dqo_map/ObjectArray.h>
 
 #include "camera_tf.h"
 #include "conversions.h"
@@ -94,6 +103,8 @@ class TrackingNode {
                      const std::string& camera_frame);
   void publish_corrections(const ros::Time& stamp);
   void publish_state(TrackingState state);
+  void on_objects(const dqo_map::ObjectArrayConstPtr& msg);
+  void on_keyframe_objects(const dqo_map::KeyFrameObjectsConstPtr& msg);
   void publish_diagnostics(const tracking::SessionResult& r, const ros::Time& stamp);
   void on_imu(const sensor_msgs::ImuConstPtr& imu);
   // Decides the map's levelling (R_map_body_) from this frame; false (and why) while it must wait.
@@ -115,6 +126,9 @@ class TrackingNode {
   std::unique_ptr<message_filters::Synchronizer<SyncPolicy>> sync_;
   ros::Publisher keyframe_pub_, poses_pub_, path_pub_, state_pub_, map_id_pub_, diag_pub_;
   ros::Subscriber imu_sub_;
+  ros::Subscriber objects_sub_, kf_objects_sub_;  // objects as landmarks (when enabled)
+  size_t object_landmarks_ = 0;                   // objects in the last set given to the tracker
+  uint64_t object_sightings_ = 0;                 // associated detections given to it
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<ReplayTfListener> tf_listener_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
@@ -243,6 +257,10 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
     }
   }
   map_id_pub_.publish(map_id);
+  if (config->tracker.objects.enabled && p_.pose_source == "tracker") {
+    objects_sub_ = nh_.subscribe("objects", 1, &TrackingNode::on_objects, this);
+    kf_objects_sub_ = nh_.subscribe("keyframe_objects", 20, &TrackingNode::on_keyframe_objects, this);
+  }
 
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
   rgb_sub_.subscribe(nh_, p_.rgb_topic, p_.queue_size, hints);
@@ -638,11 +656,56 @@ void TrackingNode::publish_diagnostics(const tracking::SessionResult& r, const r
   add("features_dense_disagreement_m", std::to_string(q.disagreement_m));
   add("features_dense_disagreement_deg", std::to_string(q.disagreement_deg));
   add("milliseconds", std::to_string(r.track.milliseconds));
+  if (objects_sub_) {
+    add("object_landmarks", std::to_string(object_landmarks_));
+    add("object_sightings", std::to_string(object_sightings_));
+  }
   for (const auto& [state, n] : frames_per_state_) add("frames_" + state, std::to_string(n));
   diagnostic_msgs::DiagnosticArray array;
   array.header.stamp = stamp;
   array.status.push_back(status);
   diag_pub_.publish(array);
+}
+
+void TrackingNode::on_objects(const dqo_map::ObjectArrayConstPtr& msg) {
+  if (!T_map_tracker_) return;  // no tracker frame in the map yet: these are not this map's objects
+  if (!msg->header.frame_id.empty() && msg->header.frame_id != p_.tf.map_frame) {
+    if (!throttled("objects_frame")) {
+      ROS_WARN("tracking: objects in frame '%s', not the map '%s': ignored", msg->header.frame_id.c_str(),
+               p_.tf.map_frame.c_str());
+    }
+    return;
+  }
+  const SE3 T_tracker_map = T_map_tracker_->inverse();
+  std::vector<tracking::ObjectLandmark> landmarks;
+  landmarks.reserve(msg->objects.size());
+  for (const dqo_map::Object& o : msg->objects) {
+    const SE3 T_map_object = from_pose_msg(o.pose);
+    const Eigen::Vector3d axes(o.semi_axes.x, o.semi_axes.y, o.semi_axes.z);
+    if (!(axes.minCoeff() > 0.0) || !axes.allFinite()) continue;
+    tracking::ObjectLandmark l;
+    l.id = o.id;
+    l.quadric = DualQuadric::from_params(T_map_object.translation(), T_map_object.rotation(), axes)
+                    .transformed(T_tracker_map);
+    l.confirmed = true;  // the topic carries the confirmed objects only
+    l.confidence = o.confidence;
+    l.observations = static_cast<int>(o.observations);
+    landmarks.push_back(l);
+  }
+  object_landmarks_ = landmarks.size();
+  session_->set_object_landmarks(landmarks);
+}
+
+void TrackingNode::on_keyframe_objects(const dqo_map::KeyFrameObjectsConstPtr& msg) {
+  const auto& detections = msg->detections.detections;
+  std::vector<tracking::ObjectSighting> sightings;
+  for (size_t i = 0; i < detections.size() && i < msg->object_ids.size(); ++i) {
+    if (msg->object_ids[i] == 0) continue;
+    const auto& d = detections[i];
+    sightings.push_back({msg->object_ids[i], Box2d{d.x_min, d.y_min, d.x_max, d.y_max}, d.score});
+  }
+  object_sightings_ += sightings.size();
+  session_->add_object_sightings(msg->keyframe_id, sightings);
 }
 
 void TrackingNode::publish_state(TrackingState state) {

@@ -92,6 +92,8 @@ OfflineResult run_offline_mapping(const FrameSource& source, const OfflineStages
       if (selector.consider(frame->T_wc)) pose.keyframe = next_keyframe++;
     }
     result.timings.pose_ms.push_back(pose.ms);
+    if (!pose.state.empty()) result.states.emplace_back(frame->timestamp, pose.state);
+    result.object_costs = std::max(result.object_costs, pose.object_costs);
     if (!pose.T_wc) {
       ++result.frames_without_pose;
       if (progress) progress(n + 1, total);
@@ -111,6 +113,7 @@ OfflineResult run_offline_mapping(const FrameSource& source, const OfflineStages
       ObjectStageOutput objects = stages.objects ? stages.objects(kf, *frame)
                                                  : ground_truth_objects(*frame, source.info());
       objects.keyframe_objects.keyframe_id = kf.id;
+      if (stages.objects && stages.object_feedback) stages.object_feedback(objects);
       result.timings.objects_ms.push_back(objects.ms);
       // In the order the ROS nodes publish: the keyframe, its events, the objects, its objects.
       keyframe_work = [kf = std::move(kf), objects = std::move(objects)](

@@ -50,6 +50,9 @@ void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCam
                                     frame.depth_timestamp};
     const tracking::SessionResult r = session->track(camera, input);
     out.ms = ms_since(t0);
+    out.state = r.skipped != tracking::SessionResult::Skip::kNone ? "skipped"
+                                                                  : tracking::to_string(r.track.state);
+    if (session->tracker() != nullptr) out.object_costs = session->tracker()->object_costs_applied();
     if (r.skipped != tracking::SessionResult::Skip::kNone ||
         !tracking::has_pose(r.track.state)) {
       return out;
@@ -65,6 +68,42 @@ void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCam
     }
     return out;
   };
+  stages->object_feedback = nullptr;
+  if (offline.tracker.objects.enabled) {
+    stages->object_feedback = [session, anchors](const ObjectStageOutput& objects) {
+      // The objects were built on anchored poses: back into the tracker's world.
+      const SE3 T_est_gt = anchors->T_gt_est().inverse();
+      session->set_object_landmarks(object_landmarks(objects.objects, T_est_gt));
+      session->add_object_sightings(objects.keyframe_objects.keyframe_id,
+                                    object_sightings(objects.keyframe_objects));
+    };
+  }
+}
+
+std::vector<tracking::ObjectLandmark> object_landmarks(const std::vector<mapping::ObjectRecord>& objects,
+                                                       const SE3& T_tracker_world) {
+  std::vector<tracking::ObjectLandmark> out;
+  out.reserve(objects.size());
+  for (const mapping::ObjectRecord& o : objects) {
+    tracking::ObjectLandmark l;
+    l.id = o.id;
+    l.quadric = o.quadric.transformed(T_tracker_world);
+    l.confirmed = true;  // the object stage's records are its confirmed objects (to_object_records)
+    l.confidence = o.confidence;
+    l.observations = o.observations;
+    out.push_back(l);
+  }
+  return out;
+}
+
+std::vector<tracking::ObjectSighting> object_sightings(const mapping::KeyframeObjects& keyframe) {
+  std::vector<tracking::ObjectSighting> out;
+  const size_t n = std::min(keyframe.detections.size(), keyframe.object_ids.size());
+  for (size_t i = 0; i < n; ++i) {
+    if (keyframe.object_ids[i] == 0) continue;
+    out.push_back({keyframe.object_ids[i], keyframe.detections[i].box, keyframe.detections[i].score});
+  }
+  return out;
 }
 
 void add_trajectory_stage(Trajectory trajectory, const PoseLookupParams& lookup,

@@ -29,6 +29,9 @@ class TrajectoryAnchor {
   // A pose corrected later (bundle adjustment), with the anchor already fixed.
   SE3 apply(const SE3& T_wc) const { return enabled_ && anchored_ ? T_gt_est_ * T_wc : T_wc; }
   bool anchored() const { return anchored_; }
+  // The estimate's world in the ground truth's (identity when disabled or not yet anchored): maps
+  // what was built on anchored poses (objects) back into the estimate's world.
+  SE3 T_gt_est() const { return enabled_ && anchored_ ? T_gt_est_ : SE3(); }
 
  private:
   bool enabled_;

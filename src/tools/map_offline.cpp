@@ -8,6 +8,8 @@
 //   object_<id>_mesh.ply           each object's TSDF mesh
 //   timings.json                   per stage, per frame and total; frames per second; peak memory
 //   metrics.json                   where ground truth exists: ATE, objects, reconstruction
+//   trajectory.txt                 the poses of the run (TUM format; anchored like the map)
+//   states.txt                     with --poses track: each frame's tracking state ("stamp state")
 //   object_table.txt               the objects for a person: class shares, centre, box, observations
 //   overlays/keyframe_<id>.png     with --overlays: each keyframe's detections and objects drawn
 // The reduced build (no OpenCV, Ceres, Open3D: the GPU machine) takes scene YAMLs only, with
@@ -40,6 +42,7 @@
 #include "dqo_map/io/dataset_reader.h"
 #include "dqo_map/io/image_io.h"
 #include "dqo_map/io/mesh_io.h"
+#include "dqo_map/common/tum_trajectory.h"
 #include "dqo_map/io/trajectory_io.h"
 #include "dqo_map/objects/params_yaml.h"
 #include "dqo_map/system/keyframe_overlays.h"
@@ -609,6 +612,9 @@ int main(int argc, char** argv) {
     metrics_text = dqo::system::metrics_json(metrics);
     if (metrics.recon && o.meshes) table = dqo::mesh::format_recon_table(*metrics.recon);
     if (metrics.ate) std::printf("ATE RMSE: %.2f cm over %d frames\n", 100 * metrics.ate->rmse_m, metrics.ate->matched);
+    if (run.object_costs > 0)
+      std::printf("objects as landmarks: %llu keyframe-object costs in the tracker's bundle adjustments\n",
+                  static_cast<unsigned long long>(run.object_costs));
     if (metrics.objects) {
       std::printf("objects: %d of %d found, %d spurious; mean 3D IoU %.3f, 2D IoU %.3f, CDE %.1f cm\n",
                   metrics.objects->num_matched, metrics.objects->num_gt, metrics.objects->num_spurious,
@@ -619,6 +625,17 @@ int main(int argc, char** argv) {
 #endif
   if (!metrics_text.empty() && !dqo::write_file_atomically((out / "metrics.json").string(), metrics_text, &error)) {
     return fail(error);
+  }
+
+  if (!dqo::write_tum_trajectory((out / "trajectory.txt").string(), run.trajectory, &error)) return fail(error);
+  if (!run.states.empty()) {
+    std::string states;
+    char line[64];
+    for (const auto& [stamp, state] : run.states) {
+      std::snprintf(line, sizeof(line), "%.6f ", stamp);
+      states += line + state + "\n";
+    }
+    if (!dqo::write_file_atomically((out / "states.txt").string(), states, &error)) return fail(error);
   }
 
   // Timings.

@@ -11,6 +11,7 @@
 #include <ceres/problem.h>
 #include <ceres/solver.h>
 
+#include "object_factors.h"
 #include "pose_optimiser.h"
 #include "residuals.h"
 
@@ -76,6 +77,7 @@ LocalBaResult solve_local_ba(const LocalBaProblem& input, const PinholeCamera& c
   ceres::EigenQuaternionManifold quaternion_manifold;
   ceres::HuberLoss reprojection_loss(pose_params.huber_reprojection_px);
   std::vector<std::unique_ptr<ceres::LossFunction>> depth_losses;
+  std::vector<std::unique_ptr<ceres::LossFunction>> object_losses;
 
   std::vector<char> outlier(input.observations.size(), 0);
   AbortCallback abort_callback(abort);
@@ -146,6 +148,16 @@ LocalBaResult solve_local_ba(const LocalBaProblem& input, const PinholeCamera& c
       problem.AddResidualBlock(OdometryCost::Create(o.T_from_to, sqrt_information(o.information)),
                                nullptr, kfs[o.from].q_cw.coeffs().data(), kfs[o.from].t_cw.data(),
                                kfs[o.to].q_cw.coeffs().data(), kfs[o.to].t_cw.data());
+    }
+    // Objects as landmarks (object_factors.h), robust in both passes: the box model is coarse.
+    // Only on free keyframes the features or the odometry put in the problem.
+    if (!input.objects.empty()) {
+      std::vector<std::pair<double*, double*>> blocks(kfs.size(), {nullptr, nullptr});
+      for (size_t k = 0; k < kfs.size(); ++k) {
+        if (keyframe_used[k] && !input.keyframes[k].fixed)
+          blocks[k] = {kfs[k].q_cw.coeffs().data(), kfs[k].t_cw.data()};
+      }
+      result.object_costs = add_object_costs(input.objects, camera, blocks, &problem, &object_losses);
     }
     if (residuals == 0) return result;
     // Gauge: the fixed keyframes (at least one, the tracker makes sure) hold the map in place;

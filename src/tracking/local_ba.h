@@ -14,8 +14,11 @@
 #include <utility>
 #include <vector>
 
+#include <array>
+
 #include <Eigen/Core>
 
+#include "dqo_map/geometry/box2d.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/geometry/se3.h"
 #include "dqo_map/tracking/tracker_params.h"
@@ -50,12 +53,27 @@ struct BaOdometry {
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
+// A detection of an object landmark by a frame that follows keyframe `keyframe` (ObjectBoxCost in
+// object_box_cost.h; built by ObjectLandmarkStore, object_factors.h). The object is held fixed.
+struct BaObjectObservation {
+  int keyframe = 0;         // index into LocalBaProblem::keyframes
+  uint64_t object_id = 0;
+  SE3 T_frame_kf;           // the sighting frame in the keyframe's
+  Eigen::Vector3d centre_w = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d L_w = Eigen::Matrix3d::Identity();  // R diag(semi-axes), world
+  Box2d box;
+  std::array<bool, 4> use_edge{{true, true, true, true}};  // x_min, y_min, x_max, y_max
+  double scale = 0.1;       // inv_sigma · sqrt(confidence)
+  double huber = 2.0;       // whitened units
+};
+
 struct LocalBaProblem {
   uint64_t generation = 0;  // the tracker's map generation (a reset starts a new one)
   std::vector<BaKeyframe> keyframes;
   std::vector<BaPoint> points;
   std::vector<BaObservation> observations;
   std::vector<BaOdometry> odometry;
+  std::vector<BaObjectObservation> objects;  // empty unless objects are landmarks
 };
 
 struct LocalBaResult {
@@ -66,6 +84,7 @@ struct LocalBaResult {
   std::vector<std::pair<uint64_t, uint64_t>> outliers;  // (keyframe ID, point ID) to unlink
   double initial_cost = 0.0;
   double final_cost = 0.0;
+  int object_costs = 0;  // object-landmark residual blocks in the last pass
   double milliseconds = 0.0;
 };
 

@@ -158,6 +158,17 @@ Section schema(TrackingConfig& c) {
                                   {"confirm_max_disagreement_deg", &t.quality.confirm_max_disagreement_deg, 0.0, 180.0},
                               },
                               {}},
+                      Section{"object_landmarks",
+                              {
+                                  {"enabled", &t.objects.enabled},
+                                  {"box_sigma_px", &t.objects.box_sigma_px, 0.0, kInf},
+                                  {"huber", &t.objects.huber, 0.0, kInf},
+                                  {"min_confidence", &t.objects.min_confidence, 0.0, 1.0},
+                                  {"min_observations", &t.objects.min_observations, 0, 1000000},
+                                  {"border_px", &t.objects.border_px, 0.0, kInf},
+                                  {"min_iou", &t.objects.min_iou, 0.0, 1.0},
+                              },
+                              {}},
                       Section{"reloc",
                               {
                                   {"candidate_keyframes", &t.reloc.candidate_keyframes, 1, 10000},

@@ -18,6 +18,7 @@
 #include "local_ba.h"
 #include "map_store.h"
 #include "matching.h"
+#include "object_factors.h"
 #include "orb_frame.h"
 #include "pose_optimiser.h"
 #include "tracking_quality.h"
@@ -182,6 +183,8 @@ struct Tracker::Impl {
   Eigen::Matrix<double, 6, 6> odometry_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
   bool odometry_valid_ = false;
 
+  ObjectLandmarkStore objects_;  // objects as landmarks (object_factors.h)
+
   std::mutex registry_mutex_;  // guards the two below (corrected_frames() is thread-safe)
   std::unordered_map<uint64_t, RegisteredFrame> registered_;
   std::map<uint64_t, SE3> corrections_;  // frame ID -> corrected T_wc, the latest wins
@@ -196,6 +199,7 @@ struct Tracker::Impl {
   std::atomic<uint64_t> loops_closed_{0};
   std::atomic<uint64_t> loop_queries_{0};
   double loop_milliseconds_ = 0.0;  // place recognition and corrections, in total
+  uint64_t object_costs_ = 0;              // object-landmark costs in those adjustments
 };
 
 }  // namespace dqo::tracking

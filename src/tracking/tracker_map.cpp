@@ -231,6 +231,13 @@ LocalBaProblem Tracker::Impl::local_ba_problem(uint64_t keyframe_id) const {
       problem.observations.push_back(o);
     }
   }
+  if (params_.objects.enabled) {
+    for (size_t i = 0; i < problem.keyframes.size(); ++i) {
+      if (problem.keyframes[i].fixed) continue;
+      objects_.observations(problem.keyframes[i].id, static_cast<int>(i), problem.keyframes[i].T_wc,
+                            camera_, params_.objects, &problem.objects);
+    }
+  }
   return problem;
 }
 
@@ -282,6 +289,7 @@ void Tracker::Impl::apply_ba_results() {
 void Tracker::Impl::apply_ba_result(const LocalBaResult& result) {
   if (result.generation != generation_ || !result.ok) return;
   ++ba_runs_;
+  object_costs_ += static_cast<uint64_t>(result.object_costs);
   // Only what still exists: the map may have moved on while the worker ran.
   std::unordered_map<uint64_t, SE3> moved;
   for (const auto& [id, T_wc] : result.keyframes) {
@@ -389,6 +397,7 @@ void Tracker::Impl::reset() {
   loop_query_ = kNoId;
   odometry_covariance_.setZero();
   odometry_valid_ = false;
+  objects_.clear();  // the objects and keyframes of the old map's world
   std::lock_guard<std::mutex> lock(registry_mutex_);
   registered_.clear();
   corrections_.clear();

@@ -82,6 +82,15 @@ SessionResult TrackingSession::add_pose(double timestamp, const SE3& T_wc) {
   return result;
 }
 
+void TrackingSession::set_object_landmarks(const std::vector<ObjectLandmark>& objects) {
+  if (tracker_) tracker_->set_object_landmarks(objects);
+}
+
+void TrackingSession::add_object_sightings(uint64_t keyframe_id,
+                                           const std::vector<ObjectSighting>& sightings) {
+  if (tracker_) tracker_->add_object_sightings(keyframe_id, sightings);
+}
+
 std::vector<CorrectedPose> TrackingSession::corrected_keyframes() {
   if (!tracker_) return {};
   return tracker_->corrected_frames();

@@ -42,6 +42,8 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include <dqo_map/KeyFrame.h>
+#include <dqo_map/KeyFrameObjects.h>
+#include <dqo_map/ObjectArray.h>
 
 #include "dqo_map/common/tum_trajectory.h"
 #include "ros_test_poses.h"
@@ -163,6 +165,8 @@ class TrackingNodeTest : public ::testing::Test {
     rgb_pub_ = nh.advertise<sensor_msgs::Image>("/rgb/image_raw", 10);
     depth_pub_ = nh.advertise<sensor_msgs::Image>("/depth_to_rgb/image_raw", 10);
     info_pub_ = nh.advertise<sensor_msgs::CameraInfo>("/rgb/camera_info", 10);
+    objects_pub_ = nh.advertise<dqo_map::ObjectArray>("/dqo_map/objects", 1, true);
+    kf_objects_pub_ = nh.advertise<dqo_map::KeyFrameObjects>("/dqo_map/keyframe_objects", 10);
     spinner_ = std::make_unique<ros::AsyncSpinner>(2);
     spinner_->start();
     ASSERT_TRUE(wait_for(
@@ -215,6 +219,7 @@ class TrackingNodeTest : public ::testing::Test {
   std::unique_ptr<ros::AsyncSpinner> spinner_;
   ros::Subscriber keyframe_sub_, tf_sub_, tf_static_sub_, log_sub_, state_sub_, map_id_sub_, diag_sub_;
   ros::Publisher clock_pub_, tf_static_pub_, rgb_pub_, depth_pub_, info_pub_;
+  ros::Publisher objects_pub_, kf_objects_pub_;  // as association_node publishes them
 };
 
 fs::path TrackingNodeTest::dir_;
@@ -230,8 +235,58 @@ TEST_F(TrackingNodeTest, KeyframesTfAndBadInput) {
       break;
     }
     tracked += play(captures_[i], i == 0, bag.take(5.0)) ? 1 : 0;
+    // Objects as landmarks (tracking.test enables them): association_node's topics, once the
+    // tracker is in the map. Three objects, one without a valid ellipsoid (dropped); then one
+    // keyframe's detections, one of them rejected (object 0).
+    if (i == 10) {
+      dqo_map::ObjectArray objects;
+      objects.header.frame_id = "map";
+      objects.header.stamp = captures_[i].stamp;
+      for (int k = 0; k < 3; ++k) {
+        dqo_map::Object o;
+        o.id = 7 + k;
+        o.pose.orientation.w = 1.0;
+        o.pose.position.x = 0.3 * k;
+        o.pose.position.z = 0.5;
+        o.semi_axes.x = o.semi_axes.y = o.semi_axes.z = k == 2 ? 0.0 : 0.1;
+        o.observations = 5;
+        o.confidence = 0.9f;
+        objects.objects.push_back(o);
+      }
+      EXPECT_GT(objects_pub_.getNumSubscribers(), 0u) << "tracking_node does not take objects";
+      objects_pub_.publish(objects);
+    } else if (i == 12) {
+      dqo_map::KeyFrameObjects kfo;
+      kfo.header.stamp = captures_[i].stamp;
+      {
+        std::lock_guard<std::mutex> lock(rec_.mutex);
+        kfo.keyframe_id = rec_.keyframes.empty() ? 1 : rec_.keyframes.front().id;
+      }
+      dqo_map::Detection d;
+      d.x_min = 100;
+      d.y_min = 100;
+      d.x_max = 200;
+      d.y_max = 180;
+      d.score = 0.8f;
+      kfo.detections.detections = {d, d};
+      kfo.object_ids = {7, 0};
+      kf_objects_pub_.publish(kfo);
+    }
   }
   EXPECT_GE(tracked, 38) << "frames the node published tf for";
+  {
+    // The tracker got the two valid objects and the one associated detection (its /diagnostics).
+    std::lock_guard<std::mutex> lock(rec_.mutex);
+    bool landmarks = false, sightings = false;
+    for (const auto& status : rec_.diagnostics) {
+      for (const auto& kv : status.values) {
+        landmarks = landmarks || (kv.key == "object_landmarks" && kv.value == "2");
+        sightings = sightings || (kv.key == "object_sightings" && kv.value == "1");
+      }
+    }
+    EXPECT_TRUE(landmarks) << "no tracking status reported the 2 object landmarks";
+    EXPECT_TRUE(sightings) << "no tracking status reported the 1 object sighting";
+  }
   // The last frame's keyframe (if it is one) may arrive after its tf: the frames' stamps say which
   // keyframes to read, so nothing below depends on that order.
 

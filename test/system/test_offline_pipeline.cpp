@@ -107,6 +107,55 @@ TEST(OfflinePipeline, TinyObjectsPosesAndGaussians) {
   }
 }
 
+// Objects as landmarks offline: with tracker.object_landmarks on, each keyframe's object-stage
+// output goes back to the tracker (the calls tracking_node makes), whose bundle adjustments then
+// hold object costs; off (the default), nothing goes back.
+TEST(OfflinePipeline, TheTrackerTakesTheObjectStagesObjectsBackWhenEnabled) {
+  const auto source = tiny_source();
+  std::map<bool, OfflineResult> results;
+  for (const bool enabled : {false, true}) {
+    tracking::TrackingConfig config;
+    config.tracker.objects.enabled = enabled;
+    OfflineStages stages;
+    add_tracking_stage(config, source->info().camera, true, &stages);
+    EXPECT_EQ(static_cast<bool>(stages.object_feedback), enabled);
+    results[enabled] = run_tiny(*source, stages, LabelSource::kMasks, false).result;
+    ASSERT_TRUE(results[enabled].ok) << results[enabled].error;
+    EXPECT_EQ(results[enabled].states.size(), static_cast<size_t>(source->num_frames()));
+  }
+  EXPECT_EQ(results[false].object_costs, 0u);
+  EXPECT_GT(results[true].object_costs, 0u);
+  EXPECT_EQ(results[true].trajectory.size(), results[false].trajectory.size());
+}
+
+TEST(OfflinePipeline, ObjectLandmarksAreMovedIntoTheTrackersWorld) {
+  mapping::ObjectRecord r;
+  r.id = 4;
+  r.quadric = DualQuadric::from_params(Eigen::Vector3d(1.0, 2.0, 3.0), Eigen::Matrix3d::Identity(),
+                                       Eigen::Vector3d(0.3, 0.2, 0.1));
+  r.confidence = 0.7;
+  r.observations = 6;
+  const SE3 T_tracker_world(Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ())),
+                            Eigen::Vector3d(-1.0, 0.0, 0.5));
+  const auto landmarks = object_landmarks({r}, T_tracker_world);
+  ASSERT_EQ(landmarks.size(), 1u);
+  EXPECT_EQ(landmarks[0].id, 4u);
+  EXPECT_TRUE(landmarks[0].confirmed);
+  EXPECT_DOUBLE_EQ(landmarks[0].confidence, 0.7);
+  EXPECT_EQ(landmarks[0].observations, 6);
+  EXPECT_LT((landmarks[0].quadric.centre() - T_tracker_world * r.quadric.centre()).norm(), 1e-9);
+
+  mapping::KeyframeObjects kfo;
+  kfo.keyframe_id = 3;
+  kfo.detections.resize(3);
+  kfo.detections[1].box = Box2d{10, 20, 30, 40};
+  kfo.object_ids = {0, 9, 0};  // only the second became an object
+  const auto sightings = object_sightings(kfo);
+  ASSERT_EQ(sightings.size(), 1u);
+  EXPECT_EQ(sightings[0].object_id, 9u);
+  EXPECT_EQ(sightings[0].box.x_max, 30.0);
+}
+
 // The mapping stage on its own thread (the default) sees the same calls in the same order as on
 // the frame loop's: the same keyframes, reports and map, to the bit.
 TEST(OfflinePipeline, TheMappingThreadGivesTheSameMapAsOneThread) {

@@ -49,6 +49,8 @@ TEST(ParamsYaml, CoversEveryField) {
   EXPECT_EQ(initialisers<t::QualityParams>(), keys["tracker.quality"]) << "QualityParams" << fix;
   EXPECT_EQ(initialisers<t::LoopParams>(), keys["tracker.loop"]) << "LoopParams" << fix;
   EXPECT_EQ(initialisers<t::RefineParams>(), keys["tracker.refine"]) << "RefineParams" << fix;
+  EXPECT_EQ(initialisers<t::ObjectLandmarkParams>(), keys["tracker.object_landmarks"])
+      << "ObjectLandmarkParams" << fix;
   // TrackerParams: its scalar keys plus one per stage section.
   size_t stages = 0;
   for (const auto& [path, n] : keys) stages += path.rfind("tracker.", 0) == 0 ? 1 : 0;
@@ -71,6 +73,8 @@ TEST(ParamsYaml, RoundTripsEveryValue) {
   c.tracker.reloc.min_inliers = 44;
   c.tracker.loop.min_inliers = 77;
   c.tracker.loop.global_ba = false;
+  c.tracker.objects.enabled = true;
+  c.tracker.objects.box_sigma_px = 7.25;
   c.mapping_keyframes.max_rotation_deg = 7.5;
   c.mapping_keyframes.max_frames = 0;
   const std::string text = tracking_config_to_yaml(c);
@@ -82,6 +86,8 @@ TEST(ParamsYaml, RoundTripsEveryValue) {
   EXPECT_EQ(back->tracker.orb.scale_factor, 1.3f);
   EXPECT_EQ(back->tracker.dense.colour_weight, 0.123456789);
   EXPECT_EQ(back->tracker.dense.iterations[2], 17);
+  EXPECT_TRUE(back->tracker.objects.enabled);
+  EXPECT_EQ(back->tracker.objects.box_sigma_px, 7.25);
   EXPECT_EQ(back->mapping_keyframes.max_frames, 0);
 }
 

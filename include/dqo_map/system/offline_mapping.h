@@ -27,6 +27,8 @@ struct FramePose {
   std::optional<SE3> T_wc;                      // nullopt: no pose (frame skipped)
   std::optional<mapping::KeyframeId> keyframe;  // set: the frame is mapping keyframe `keyframe`
   double ms = 0.0;                              // time the pose took (tracking)
+  std::string state;                            // the tracker's state ("ok", ...); "" without one
+  uint64_t object_costs = 0;                    // object-landmark costs in the tracker's BA so far
 };
 
 // What the object stage gives back for one keyframe.
@@ -44,6 +46,10 @@ struct OfflineStages {
   std::function<std::map<mapping::KeyframeId, SE3>()> corrected_poses;
   // Empty: ground_truth_objects() (the dataset's instance masks and boxes).
   std::function<ObjectStageOutput(const mapping::MappingKeyframe&, const Frame&)> objects;
+  // Objects as landmarks of the tracker: each keyframe's object stage output handed back to the
+  // pose stage right after it (before the next frame is tracked), as association_node's objects
+  // topic does live. Called only with `objects` set (never with the ground truth's objects).
+  std::function<void(const ObjectStageOutput&)> object_feedback;
 };
 
 struct OfflineMappingParams {
@@ -72,6 +78,8 @@ struct OfflineResult {
   int rejected_keyframes = 0;  // refused by the mapper (bad images): logged in warnings
   std::vector<std::string> warnings;
   std::vector<std::pair<double, SE3>> trajectory;     // estimated T_wc per posed frame (by time)
+  std::vector<std::pair<double, std::string>> states; // the tracker's state per frame (with a tracker)
+  uint64_t object_costs = 0;  // object-landmark costs the tracker's bundle adjustments applied
   std::vector<std::pair<double, SE3>> ground_truth;   // the frames' ground truth, where they have it
   std::vector<mapping::MappingReport> reports;        // one per mapped keyframe
   StageTimings timings;

@@ -15,6 +15,7 @@
 #include "dqo_map/io/trajectory_io.h"
 #include "dqo_map/objects/object_mapper.h"
 #include "dqo_map/system/offline_mapping.h"
+#include "dqo_map/tracking/object_landmarks.h"
 #include "dqo_map/tracking/params_yaml.h"
 
 namespace dqo::system {
@@ -23,7 +24,8 @@ namespace dqo::system {
 // poses bundle adjustment moved). With `anchor` set and ground truth in the frames, the tracker's
 // world (its first camera) is moved rigidly onto the ground truth at the first frame that has
 // both, so objects and meshes compare with the ground truth; the tracker's drift still counts.
-// Fills stages.pose and stages.corrected_poses.
+// Fills stages.pose and stages.corrected_poses, and with config.tracker.objects.enabled
+// stages.object_feedback (the object stage's objects and sightings back to the tracker).
 void add_tracking_stage(const tracking::TrackingConfig& config, const PinholeCamera& camera,
                         bool anchor, OfflineStages* stages);
 
@@ -71,6 +73,12 @@ std::shared_ptr<objects::ObjectMapper> add_object_stage(const objects::ObjectMap
                                                         OfflineStages* stages,
                                                         FrameDetector detector = {},
                                                         ObjectStageObserver observer = {});
+
+// The object stage's confirmed objects as tracker landmarks, moved into the tracker's world by
+// T_tracker_world, and one keyframe's associated detections as sightings (objects as landmarks).
+std::vector<tracking::ObjectLandmark> object_landmarks(const std::vector<mapping::ObjectRecord>& objects,
+                                                       const SE3& T_tracker_world);
+std::vector<tracking::ObjectSighting> object_sightings(const mapping::KeyframeObjects& keyframe);
 
 // The object stage's objects as mapping records.
 std::vector<mapping::ObjectRecord> to_object_records(const std::vector<objects::MapObject>& objects);

@@ -17,6 +17,7 @@
 #include "dqo_map/common/image.h"
 #include "dqo_map/geometry/pinhole_camera.h"
 #include "dqo_map/geometry/se3.h"
+#include "dqo_map/tracking/object_landmarks.h"
 #include "dqo_map/tracking/tracker_params.h"
 
 namespace dqo::tracking {
@@ -135,6 +136,16 @@ class Tracker {
   // keyframes (corrected_frames()). On the thread that calls track().
   void optimise_map();
   LoopStats loop_stats() const;  // on the tracker's thread
+  // Objects as landmarks (object_landmarks.h; local BA uses them when params.objects.enabled).
+  // The object stage's newest objects, in the tracker's world frame, replacing the last set.
+  // On the tracker's thread; a reset() forgets them.
+  void set_object_landmarks(const std::vector<ObjectLandmark>& objects);
+  // The detections of registered frame `frame_id` (register_frame) associated with objects; they
+  // join the next adjustments of the frame's reference keyframe. Unknown frames are ignored.
+  void add_object_sightings(uint64_t frame_id, const std::vector<ObjectSighting>& sightings);
+  size_t num_object_landmarks() const;  // on the tracker's thread
+  // Object-landmark costs (keyframe, object) in the adjustments applied so far; tracker's thread.
+  uint64_t object_costs_applied() const;
 
   TrackingState state() const;  // any thread
   // The tracker's own map (not the mapping keyframes); on the tracker's thread.

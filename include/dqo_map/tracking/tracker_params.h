@@ -200,6 +200,23 @@ struct QualityParams {
   double confirm_max_disagreement_deg = 1.5;
 };
 
+// Objects as landmarks (issue 25, item 1; object_landmarks.h): local BA gains a robust cost between
+// a keyframe's pose and the confirmed objects its registered frames saw, the detection box against
+// the box of the object's projected conic (QuadricSLAM), weighted by the object's confidence.
+struct ObjectLandmarkParams {
+  // Off by default: on the shared sequences it did not lower the ATE (BENCHMARKS.md, "fused +
+  // objects"); the object stage's boxes are coarser than the features' pixels.
+  bool enabled = false;
+  double box_sigma_px = 10.0;   // σ of a box edge: detector jitter plus the ellipsoid's misfit
+  double huber = 2.0;           // Huber threshold of a box residual, in σ
+  double min_confidence = 0.5;  // objects believed less are not used
+  int min_observations = 3;     // ... nor those behind fewer detections
+  double border_px = 10.0;      // a detection edge this close to the border is not a measurement
+  // A sighting whose object's box (at the keyframe's pose before adjustment) overlaps its detection
+  // less than this is a wrong association or a stale object, and is not used.
+  double min_iou = 0.3;
+};
+
 struct TrackerParams {
   OrbParams orb;
   DenseParams dense;
@@ -211,6 +228,7 @@ struct TrackerParams {
   RefineParams refine;
   SearchParams search;
   QualityParams quality;
+  ObjectLandmarkParams objects;
   bool use_dense = true;        // fuse dense depth alignment with the features
   bool use_features = true;
   int min_inliers_ok = 15;      // below: this frame's tracking failed

@@ -53,6 +53,11 @@ class TrackingSession {
   // Poses of mapping keyframes that bundle adjustment moved since the last call.
   std::vector<CorrectedPose> corrected_keyframes();
 
+  // Objects as landmarks (Tracker::set_object_landmarks / add_object_sightings), with mapping
+  // keyframe IDs as the frame IDs. Nothing without a tracker (external poses).
+  void set_object_landmarks(const std::vector<ObjectLandmark>& objects);
+  void add_object_sightings(uint64_t keyframe_id, const std::vector<ObjectSighting>& sightings);
+
   // Starts over (tracker and keyframe policy); keyframe IDs keep counting.
   void reset();
 
