@@ -129,6 +129,7 @@ class TrackingNode {
   ros::Subscriber objects_sub_, kf_objects_sub_;  // objects as landmarks (when enabled)
   size_t object_landmarks_ = 0;                   // objects in the last set given to the tracker
   uint64_t object_sightings_ = 0;                 // associated detections given to it
+  bool objects_changed_ = false;                  // the next frame's diagnostics go out at once
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<ReplayTfListener> tf_listener_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
@@ -618,10 +619,11 @@ void TrackingNode::publish_corrections(const ros::Time& stamp) {
 }
 
 void TrackingNode::publish_diagnostics(const tracking::SessionResult& r, const ros::Time& stamp) {
-  // Once a second, and at once when the state changes.
+  // Once a second, and at once when the state or the object landmarks change.
   const ros::WallTime now = ros::WallTime::now();
-  if (!r.state_changed && !last_diag_.isZero() && (now - last_diag_).toSec() < 1.0) return;
+  if (!r.state_changed && !objects_changed_ && !last_diag_.isZero() && (now - last_diag_).toSec() < 1.0) return;
   last_diag_ = now;
+  objects_changed_ = false;
   const tracking::TrackQuality& q = r.track.quality;
   diagnostic_msgs::DiagnosticStatus status;
   status.name = "dqo_map: tracking";
@@ -693,6 +695,7 @@ void TrackingNode::on_objects(const dqo_map::ObjectArrayConstPtr& msg) {
     landmarks.push_back(l);
   }
   object_landmarks_ = landmarks.size();
+  objects_changed_ = true;
   session_->set_object_landmarks(landmarks);
 }
 
@@ -705,6 +708,7 @@ void TrackingNode::on_keyframe_objects(const dqo_map::KeyFrameObjectsConstPtr& m
     sightings.push_back({msg->object_ids[i], Box2d{d.x_min, d.y_min, d.x_max, d.y_max}, d.score});
   }
   object_sightings_ += sightings.size();
+  objects_changed_ = true;
   session_->add_object_sightings(msg->keyframe_id, sightings);
 }
 

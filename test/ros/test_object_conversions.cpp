@@ -197,12 +197,20 @@ TEST(ObjectConversions, Markers) {
     EXPECT_EQ(s.type, visualization_msgs::Marker::SPHERE);
     EXPECT_EQ(s.id, static_cast<int>(objs[i].id));
     EXPECT_EQ(s.header.frame_id, "map");
-    EXPECT_DOUBLE_EQ(s.scale.x, 2.0 * objs[i].quadric.semi_axes().x());
-    EXPECT_DOUBLE_EQ(s.scale.y, 2.0 * objs[i].quadric.semi_axes().y());
-    EXPECT_DOUBLE_EQ(s.scale.z, 2.0 * objs[i].quadric.semi_axes().z());
-    // The marker's axes are the ellipsoid's: R(marker) e_k = rotation column k.
+    // The marker is the ellipsoid: R diag(scale / 2)² Rᵀ is the quadric's shape (its axes in the one
+    // reported order, canonical_axes), and its pose and scale are the object message's.
     const Eigen::Quaterniond q(s.pose.orientation.w, s.pose.orientation.x, s.pose.orientation.y, s.pose.orientation.z);
-    EXPECT_TRUE(q.toRotationMatrix().isApprox(objs[i].quadric.rotation(), 1e-9));
+    const Eigen::Matrix3d R = q.toRotationMatrix();
+    const Eigen::Vector3d half(0.5 * s.scale.x, 0.5 * s.scale.y, 0.5 * s.scale.z);
+    const Eigen::Matrix3d shape = R * half.array().square().matrix().asDiagonal() * R.transpose();
+    const DualQuadric& Q = objs[i].quadric;
+    const Eigen::Matrix3d truth = Q.rotation() * Q.semi_axes().array().square().matrix().asDiagonal() * Q.rotation().transpose();
+    EXPECT_LT((shape - truth).norm(), 1e-9);
+    EXPECT_DOUBLE_EQ(s.scale.x, 2.0 * o.semi_axes.x);
+    EXPECT_DOUBLE_EQ(s.scale.z, 2.0 * o.semi_axes.z);
+    EXPECT_NEAR(std::abs(q.dot(Eigen::Quaterniond(o.pose.orientation.w, o.pose.orientation.x, o.pose.orientation.y,
+                                                  o.pose.orientation.z))),
+                1.0, 1e-12);
     EXPECT_NEAR(s.pose.position.x, objs[i].quadric.centre().x(), 1e-12);
     EXPECT_EQ(t.type, visualization_msgs::Marker::TEXT_VIEW_FACING);
     EXPECT_EQ(t.text, std::to_string(objs[i].id) + " " + objs[i].class_name);
