@@ -3,6 +3,7 @@
 #include <cstring>
 #include <cmath>
 
+#include <boost/make_shared.hpp>
 #include <rosbag/bag.h>
 #include <tf2_msgs/TFMessage.h>
 
@@ -78,7 +79,15 @@ bool KinectBagWriter::write(const Frame& frame, std::string* error) {
     if (!s.wrote_static) {
       tf2_msgs::TFMessage tf_static;
       tf_static.transforms.push_back(stamped(s.T_base_rgb, o.base_frame, o.camera_frame, stamp));
-      s.bag.write("/tf_static", stamp, tf_static);
+      // Latched, as tf2's static broadcaster publishes it: `rosbag play` then latches it too, so
+      // a tf listener or rviz that starts late still gets camera_base -> rgb_camera_link.
+      auto latched = boost::make_shared<ros::M_string>();
+      (*latched)["type"] = ros::message_traits::datatype<tf2_msgs::TFMessage>();
+      (*latched)["md5sum"] = ros::message_traits::md5sum<tf2_msgs::TFMessage>();
+      (*latched)["message_definition"] = ros::message_traits::definition<tf2_msgs::TFMessage>();
+      (*latched)["callerid"] = "/dqo_make_scene";
+      (*latched)["latching"] = "1";
+      s.bag.write("/tf_static", stamp, tf_static, latched);
       s.wrote_static = true;
     }
     s.bag.write(o.rgb_topic, stamp, to_bgra8_msg(frame.rgb, header));

@@ -101,10 +101,17 @@ TEST(KinectBag, HoldsTheDriverLayout) {
       ASSERT_EQ(tf->transforms.size(), 1u);
       EXPECT_EQ(tf->transforms[0].header.frame_id, "camera_base");
       EXPECT_EQ(tf->transforms[0].child_frame_id, "rgb_camera_link");
+      // Latched, so that `rosbag play` latches it for late tf listeners.
+      const auto header = m.getConnectionHeader();
+      ASSERT_TRUE(header);
+      EXPECT_EQ(header->count("latching") ? header->at("latching") : "", "1");
+      EXPECT_EQ(header->at("type"), "tf2_msgs/TFMessage");
       ++static_tf;
     } else if (topic == "/tf") {
       auto tf = m.instantiate<tf2_msgs::TFMessage>();
       ASSERT_TRUE(tf);
+      const auto header = m.getConnectionHeader();
+      EXPECT_TRUE(!header || !header->count("latching") || header->at("latching") != "1") << "only /tf_static is latched";
       EXPECT_EQ(tf->transforms.at(0).header.frame_id, "map");
       EXPECT_EQ(tf->transforms.at(0).child_frame_id, "camera_base");
       stamps[topic].push_back(tf->transforms[0].header.stamp);
