@@ -158,21 +158,20 @@ struct ObjectMapper::Impl {
   }
 
   // Whether the depth in the object's detection boxes stands out of the surface around them (the
-  // median over the observations that can tell): a detector's clutter on a wall or a table does not.
-  bool stands_out(const MapObject& object) const {
-    if (!params.surface.enabled) return true;
-    const std::vector<double> shares = stand_out_shares(object);
-    return shares.empty() || shares[shares.size() / 2] >= params.surface.min_stand_out;
+  // median of `shares`, stand_out_shares, over the observations that can tell): a detector's
+  // clutter on a wall or a table does not.
+  bool stands_out(const std::vector<double>& shares) const {
+    return !params.surface.enabled || shares.empty() || shares[shares.size() / 2] >= params.surface.min_stand_out;
   }
 
   // The depth's shape as evidence that the object exists, counted once per object (views of one
   // spot are not independent evidence of its shape): where more than half of its detections that
-  // can tell stand clearly out of their surroundings (ExistenceParams::clear_stand_out), the
-  // likelihood ratio of that under an object and under a false alarm; 0 otherwise.
-  double shape_log_odds(const MapObject& object) const {
+  // can tell (`shares`, stand_out_shares) stand clearly out of their surroundings
+  // (ExistenceParams::clear_stand_out), the likelihood ratio of that under an object and under a
+  // false alarm; 0 otherwise.
+  double shape_log_odds(const std::vector<double>& shares) const {
     const ExistenceParams& e = params.lifecycle.existence;
     if (!params.surface.enabled || !(e.clear_stand_out < 1.0)) return 0.0;
-    const std::vector<double> shares = stand_out_shares(object);
     if (shares.empty() || shares[(shares.size() - 1) / 2] < e.clear_stand_out) return 0.0;
     return std::log(e.clear_stand_out_if_object / e.clear_stand_out_if_clutter);
   }
@@ -501,8 +500,9 @@ KeyFrameAssociation ObjectMapper::Impl::process(const ObjectKeyFrame& kf) {
     try_box_init(&o);
     if (o.state != ObjectState::kCandidate || !o.has_quadric) continue;
     // The depth's shape joins the belief once, when the candidate is confirmed with it.
-    const double shape = shape_log_odds(o);
-    if (o.existence + shape >= confirm_log_odds && agrees_with_depth(o) && stands_out(o) && rises_from_support(o)) {
+    const std::vector<double> shares = stand_out_shares(o);
+    const double shape = shape_log_odds(shares);
+    if (o.existence + shape >= confirm_log_odds && agrees_with_depth(o) && stands_out(shares) && rises_from_support(o)) {
       o.existence = std::min(o.existence + shape, params.lifecycle.existence.max_log_odds);
       o.state = ObjectState::kConfirmed;
     }

@@ -7,6 +7,7 @@
 #include <ceres/problem.h>
 #include <ceres/solver.h>
 
+#include "ceres_poses.h"
 #include "residuals.h"
 
 namespace dqo::tracking {
@@ -35,13 +36,9 @@ PoseGraphResult optimise_pose_graph(const std::vector<PoseGraphNode>& nodes,
   for (const PoseGraphNode& n : nodes) result.T_wc.push_back(n.T_wc);
   if (nodes.empty() || edges.empty()) return result;
   // Ceres works on T_cw (q, t), as bundle adjustment does.
-  std::vector<Eigen::Quaterniond> q(nodes.size());
-  std::vector<Eigen::Vector3d> t(nodes.size());
-  for (size_t i = 0; i < nodes.size(); ++i) {
-    const SE3 T_cw = nodes[i].T_wc.inverse();
-    q[i] = T_cw.quaternion();
-    t[i] = T_cw.translation();
-  }
+  CameraBlocks cams(result.T_wc);
+  auto& q = cams.q;
+  auto& t = cams.t;
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::EigenQuaternionManifold quaternion_manifold;
@@ -54,8 +51,7 @@ PoseGraphResult optimise_pose_graph(const std::vector<PoseGraphNode>& nodes,
     for (const int k : {e.from, e.to}) {
       if (used[k]) continue;
       used[k] = 1;
-      problem.AddParameterBlock(q[k].coeffs().data(), 4, &quaternion_manifold);
-      problem.AddParameterBlock(t[k].data(), 3);
+      cams.add_to(&problem, static_cast<size_t>(k), &quaternion_manifold);
     }
     problem.AddResidualBlock(OdometryCost::Create(e.T_from_to, sqrt_information(e.information)),
                              nullptr, q[e.from].coeffs().data(), t[e.from].data(),
@@ -76,19 +72,13 @@ PoseGraphResult optimise_pose_graph(const std::vector<PoseGraphNode>& nodes,
       break;
     }
   }
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  options.max_num_iterations = std::max(1, iterations);
-  options.num_threads = 1;
-  options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
+  const ceres::Solver::Summary summary = solve_pose_problem(&problem, iterations);
   result.initial_cost = summary.initial_cost;
   result.final_cost = summary.final_cost;
   if (summary.termination_type == ceres::FAILURE || !std::isfinite(summary.final_cost))
     return result;
   for (size_t i = 0; i < nodes.size(); ++i)
-    if (used[i] && !nodes[i].fixed) result.T_wc[i] = SE3(q[i], t[i]).inverse();
+    if (used[i] && !nodes[i].fixed) result.T_wc[i] = cams.T_wc(i);
   result.ok = true;
   return result;
 }

@@ -8,6 +8,7 @@
 #include <ceres/problem.h>
 #include <ceres/solver.h>
 
+#include "ceres_poses.h"
 #include "residuals.h"
 
 namespace dqo::tracking {
@@ -91,20 +92,15 @@ std::vector<SE3> refine_trajectory(const std::vector<RefinerFrame>& frames, cons
   std::vector<SE3> out;
   for (const RefinerFrame& f : frames) out.push_back(f.T_wc);
   if (frames.size() < 3) return out;
-  std::vector<Eigen::Quaterniond> q(frames.size());
-  std::vector<Eigen::Vector3d> t(frames.size());
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const SE3 T_cw = frames[i].T_wc.inverse();
-    q[i] = T_cw.quaternion();
-    t[i] = T_cw.translation();
-  }
+  CameraBlocks cams(out);  // T_cw (q, t), as bundle adjustment keeps it
+  auto& q = cams.q;
+  auto& t = cams.t;
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::EigenQuaternionManifold quaternion_manifold;
   ceres::Problem problem(problem_options);
   for (size_t i = 0; i < frames.size(); ++i) {
-    problem.AddParameterBlock(q[i].coeffs().data(), 4, &quaternion_manifold);
-    problem.AddParameterBlock(t[i].data(), 3);
+    cams.add_to(&problem, i, &quaternion_manifold);
     problem.AddResidualBlock(
         DensePriorCost::Create(frames[i].T_wc.inverse(), measurement_sqrt_information(p, frames[i].degraded)),
         nullptr, q[i].coeffs().data(), t[i].data());
@@ -123,15 +119,9 @@ std::vector<SE3> refine_trajectory(const std::vector<RefinerFrame>& frames, cons
     ++tied;
   }
   if (tied == 0) return out;
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  options.max_num_iterations = std::max(1, p.iterations);
-  options.num_threads = 1;
-  options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
+  const ceres::Solver::Summary summary = solve_pose_problem(&problem, p.iterations);
   if (summary.termination_type == ceres::FAILURE || !std::isfinite(summary.final_cost)) return out;
-  for (size_t i = 0; i < frames.size(); ++i) out[i] = SE3(q[i], t[i]).inverse();
+  for (size_t i = 0; i < frames.size(); ++i) out[i] = cams.T_wc(i);
   return out;
 }
 
