@@ -56,9 +56,28 @@ dqo_cuda_flag() {
 }
 
 # Builds the catkin workspace (incremental). Extra arguments go to catkin_make (e.g. a target).
+# The package in the workspace: a folder of links to the repository's entries, all but .build
+# (and the hidden ones). A link to the repository itself would put the workspace inside its own
+# package: rosrun searches the package with `find -L` and walked into .build/ws/src/dqo_map again
+# ("File system loop detected", every tool "non-unique" beside its copy in the install space).
+dqo_link_package() {
+  local pkg="$DQO_WS/src/dqo_map" entry name
+  [ -L "$pkg" ] && rm -f "$pkg"
+  mkdir -p "$pkg"
+  for entry in "$DQO_REPO"/*; do
+    name=$(basename "$entry")
+    [ "$DQO_REPO/$name" = "$DQO_BUILD" ] && continue
+    ln -sfn "$entry" "$pkg/$name"
+  done
+  for entry in "$pkg"/*; do  # entries the repository no longer has
+    [ -L "$entry" ] && [ ! -e "$entry" ] && rm -f "$entry"
+  done
+  return 0
+}
+
 dqo_build_ws() {
   mkdir -p "$DQO_WS/src"
-  ln -sfn "$DQO_REPO" "$DQO_WS/src/dqo_map"
+  dqo_link_package
   (cd "$DQO_WS" && catkin_make -j"$DQO_JOBS" \
       -DCMAKE_BUILD_TYPE=Release \
       -DPYTHON_EXECUTABLE=/usr/bin/python3 \

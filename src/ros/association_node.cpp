@@ -12,6 +12,7 @@
 // are rejected by the core and counted in a throttled log line; keyframes whose detections never
 // come, detections that match no keyframe, unsupported depth, a missing camera_info are logged and
 // skipped; time going backwards (a looping bag) clears the buffers.
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -20,6 +21,7 @@
 #include <set>
 #include <string>
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -61,6 +63,8 @@ struct NodeParams {
   std::string state_file = "objects_state.yaml";
   bool fresh = false;              // true: resume no objects from the state file (its ID counter still)
   int queue_size = 10;
+  double diagnostics_period = 1.0;  // wall seconds between /diagnostics statuses
+  double input_warn = 10.0;         // wall seconds without keyframes, or with keyframes but no detections, before a WARN
 };
 
 class AssociationNode {
@@ -86,6 +90,7 @@ class AssociationNode {
   dqo_map::Object object_msg(const objects::MapObject& o) const;
   void save_state();
   bool throttled(const std::string& kind, double period = 5.0);
+  void publish_diagnostics(const ros::WallTimerEvent&);
 
   ros::NodeHandle nh_, pnh_;
   NodeParams p_;
@@ -102,6 +107,13 @@ class AssociationNode {
   std::optional<Matcher> matcher_;  // pairs keyframes with their detections by stamp
   std::map<std::string, ros::WallTime> last_complaint_;
   std::map<objects::ObjectId, uint32_t> num_gaussians_;  // from the mapping nodelet's mapped_objects
+
+  // What /diagnostics reports (all on the node's one callback thread).
+  ros::Publisher diag_pub_;
+  ros::WallTimer diag_timer_;
+  ros::WallTime started_ = ros::WallTime::now(), last_keyframe_, last_detections_;
+  ros::Time time_at_last_diagnostics_;  // unchanged under sim time: /clock stopped (a bag ended)
+  uint64_t keyframes_processed_ = 0, keyframes_without_detections_ = 0, detection_arrays_ = 0;
 };
 
 // ROS_*_THROTTLE counts in ROS time, which a looping bag sends backwards: throttle in wall time.
@@ -124,15 +136,19 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
   pnh_.param("state_file", p_.state_file, p_.state_file);
   pnh_.param("queue_size", p_.queue_size, p_.queue_size);
   pnh_.param("fresh", p_.fresh, p_.fresh);
+  pnh_.param("diagnostics_period", p_.diagnostics_period, p_.diagnostics_period);
+  pnh_.param("input_warn", p_.input_warn, p_.input_warn);
   const std::set<std::string> known = {"map_frame",  "stamp_tolerance", "buffer_seconds", "max_reorder_seconds", "detections_rectified",
-                                       "publish_tf", "output_dir",      "state_file",     "queue_size", "fresh", "objects"};
+                                       "publish_tf", "output_dir",      "state_file",     "queue_size", "fresh", "objects",
+                                       "diagnostics_period", "input_warn"};
   for (const std::string& name : unknown_private_params(pnh_, known)) {
     ROS_WARN("association: ignoring unknown parameter %s/%s", pnh_.getNamespace().c_str(), name.c_str());
   }
   if (p_.stamp_tolerance < 0.0 || p_.buffer_seconds <= 0.0 || p_.max_reorder_seconds < 0.0 || p_.queue_size < 1 || p_.state_file.empty() ||
+      !(p_.diagnostics_period > 0.0) ||
       fs::path(p_.state_file).has_parent_path()) {
-    ROS_FATAL("association: stamp_tolerance must be >= 0, buffer_seconds > 0, max_reorder_seconds >= 0, queue_size >= 1, state_file a "
-              "plain file name");
+    ROS_FATAL("association: stamp_tolerance must be >= 0, buffer_seconds > 0, max_reorder_seconds >= 0, queue_size >= 1, "
+              "diagnostics_period > 0, state_file a plain file name");
     return;
   }
   std::string error;
@@ -170,8 +186,11 @@ AssociationNode::AssociationNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(
   markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>("object_markers", 10, /*latch=*/true);
   events_pub_ = nh_.advertise<dqo_map::ObjectEvent>("object_events", 100);
   kf_objects_pub_ = nh_.advertise<dqo_map::KeyFrameObjects>("keyframe_objects", 10);
-  overlay_pub_ = nh_.advertise<sensor_msgs::Image>("object_overlay", 2);
+  // Latched: rviz started (or restarted) after the last keyframe still shows its overlay.
+  overlay_pub_ = nh_.advertise<sensor_msgs::Image>("object_overlay", 2, /*latch=*/true);
   list_srv_ = nh_.advertiseService("list_objects", &AssociationNode::on_list, this);
+  diag_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+  diag_timer_ = nh_.createWallTimer(ros::WallDuration(p_.diagnostics_period), &AssociationNode::publish_diagnostics, this);
   kf_sub_ = nh_.subscribe("keyframes", p_.queue_size, &AssociationNode::on_keyframe, this);
   det_sub_ = nh_.subscribe("detections", 100, &AssociationNode::on_detections, this);
   poses_sub_ = nh_.subscribe("keyframe_poses", 10, &AssociationNode::on_poses, this);
@@ -194,13 +213,67 @@ void AssociationNode::log_reset(const std::optional<objects::StampReset>& reset,
 }
 
 void AssociationNode::on_keyframe(const dqo_map::KeyFrameConstPtr& kf) {
+  last_keyframe_ = ros::WallTime::now();
   log_reset(matcher_->add_keyframe(kf->header.stamp.toSec(), kf->id, kf), "keyframe");
   match();
 }
 
 void AssociationNode::on_detections(const dqo_map::DetectionArrayConstPtr& det) {
+  last_detections_ = ros::WallTime::now();
+  ++detection_arrays_;
   log_reset(matcher_->add_detections(det->header.stamp.toSec(), det), "detection");
   match();
+}
+
+// The node's state where a robot's monitor looks. WARN when its inputs stop: keyframes that come
+// without detections (no detector running, another topic: no object will ever appear) or no
+// keyframes at all (tracking not running or not initialised; also the end of a bag).
+void AssociationNode::publish_diagnostics(const ros::WallTimerEvent&) {
+  const ros::WallTime now = ros::WallTime::now();
+  auto since = [&](const ros::WallTime& t) { return (now - (t.isZero() ? started_ : t)).toSec(); };
+  const double no_keyframes = since(last_keyframe_);
+  const double no_detections = since(last_detections_);
+  const ros::Time ros_now = ros::Time::now();
+  const bool clock_stopped = ros::Time::isSimTime() && ros_now == time_at_last_diagnostics_;
+  time_at_last_diagnostics_ = ros_now;
+  diagnostic_msgs::DiagnosticStatus status;
+  status.name = "dqo_map: association";
+  status.hardware_id = "dqo_map";
+  const size_t confirmed = mapper_->objects().size();
+  const size_t all = mapper_->objects(true).size();
+  char text[512];
+  if (p_.input_warn > 0.0 && no_keyframes < p_.input_warn && no_detections >= p_.input_warn) {
+    status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+    std::snprintf(text, sizeof(text), "keyframes arrive but no detections on %s for %.0f s: is a detector running? "
+                  "(no object appears without one)", det_sub_.getTopic().c_str(), no_detections);
+  } else if (p_.input_warn > 0.0 && no_keyframes >= p_.input_warn) {
+    status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+    std::snprintf(text, sizeof(text), "no keyframes on %s for %.0f s%s", kf_sub_.getTopic().c_str(), no_keyframes,
+                  last_keyframe_.isZero() ? " (none yet: is tracking running and initialised?)"
+                  : clock_stopped         ? " (the clock stopped too: a bag that ended or is paused)"
+                                          : "");
+  } else {
+    status.level = diagnostic_msgs::DiagnosticStatus::OK;
+    std::snprintf(text, sizeof(text), "%zu objects", confirmed);
+  }
+  status.message = text;
+  auto add = [&status](const std::string& key, const std::string& value) {
+    diagnostic_msgs::KeyValue kv;
+    kv.key = key;
+    kv.value = value;
+    status.values.push_back(kv);
+  };
+  add("objects", std::to_string(confirmed));
+  add("candidates", std::to_string(all - confirmed));
+  add("keyframes processed", std::to_string(keyframes_processed_));
+  add("keyframes without detections", std::to_string(keyframes_without_detections_));
+  add("detection arrays received", std::to_string(detection_arrays_));
+  add("seconds since a keyframe", last_keyframe_.isZero() ? "never" : std::to_string(no_keyframes));
+  add("seconds since detections", last_detections_.isZero() ? "never" : std::to_string(no_detections));
+  diagnostic_msgs::DiagnosticArray array;
+  array.header.stamp = ros::Time::now();
+  array.status.push_back(status);
+  diag_pub_.publish(array);
 }
 
 void AssociationNode::on_camera_info(const sensor_msgs::CameraInfoConstPtr& info) {
@@ -283,6 +356,7 @@ void AssociationNode::match() {
     if (step.kind == Kind::kMatched) {
       // Whatever a keyframe holds, the node keeps running: anything thrown skips this keyframe.
       try {
+        ++keyframes_processed_;
         process(*step.keyframe, *step.detections, step.early_pose);
       } catch (const std::exception& e) {
         if (!throttled("exception")) ROS_ERROR("association: keyframe %llu failed: %s: skipped",
@@ -295,6 +369,7 @@ void AssociationNode::match() {
       ROS_WARN("association: no usable camera_info on %s yet: keyframes wait (raw boxes must be undistorted; set "
                "detections_rectified if they are not raw)", info_sub_.getTopic().c_str());
     }
+    if (step.kind == Kind::kExpired && !found) keyframes_without_detections_ = step.expired_total;
     if (step.kind != Kind::kExpired || throttled("unmatched_keyframe")) continue;
     const std::string why = found ? "had detections but no usable camera_info arrived on " + info_sub_.getTopic()
                                   : "got no detections on " + det_sub_.getTopic() + " within " +

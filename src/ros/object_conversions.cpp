@@ -1,5 +1,7 @@
 #include "object_conversions.h"
 
+#include "dqo_map/objects/object_overlay.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -183,24 +185,12 @@ dqo_map::KeyFrameObjects to_keyframe_objects_msg(const objects::KeyFrameAssociat
 }
 
 std_msgs::ColorRGBA colour_of_id(objects::ObjectId id) {
-  // Golden-ratio steps in hue keep consecutive IDs far apart; full saturation, bright value.
-  const double h = std::fmod(static_cast<double>(id % 100000) * 0.618033988749895, 1.0) * 6.0;
-  const double f = h - std::floor(h);
-  const double v = 0.95, s = 0.8;
-  const double p = v * (1 - s), q = v * (1 - s * f), t = v * (1 - s * (1 - f));
-  double r = v, g = t, b = p;
-  switch (static_cast<int>(h) % 6) {
-    case 0: r = v, g = t, b = p; break;
-    case 1: r = q, g = v, b = p; break;
-    case 2: r = p, g = v, b = t; break;
-    case 3: r = p, g = q, b = v; break;
-    case 4: r = t, g = p, b = v; break;
-    default: r = v, g = p, b = q; break;
-  }
+  // The object overlay's colour, so that an object looks the same in rviz and in the overlay image.
+  const objects::Rgb rgb = objects::overlay_colour(id);
   std_msgs::ColorRGBA c;
-  c.r = static_cast<float>(r);
-  c.g = static_cast<float>(g);
-  c.b = static_cast<float>(b);
+  c.r = rgb[0] / 255.0f;
+  c.g = rgb[1] / 255.0f;
+  c.b = rgb[2] / 255.0f;
   c.a = 1.0f;
   return c;
 }

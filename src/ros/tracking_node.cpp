@@ -25,6 +25,7 @@
 // latest `objects` message received before its bundle adjustment is set up; objects arriving
 // before the tracker's frame is in the map (T_map_tracker) are ignored, the next message counts.
 #include <algorithm>
+#include <cstdio>
 #include <deque>
 #include <map>
 #include <memory>
@@ -87,6 +88,7 @@ struct NodeParams {
   double imu_wait = 1.0;            // auto: seconds (image time) to wait for them where imu has a publisher
   double level_timeout = 5.0;       // seconds without a gravity estimate before the map stays unlevelled
   double floor_max_tilt_deg = 45.0; // the floor's normal within this of the expected up
+  double no_input_warn = 10.0;      // wall seconds without any image or camera_info before a WARN (<= 0: never)
   CameraTfOptions tf;
 };
 
@@ -113,6 +115,7 @@ class TrackingNode {
   std::optional<Eigen::Vector3d> imu_up(const std::string& body, const ros::Time& stamp, std::string* error) const;
   SE3 to_map(const SE3& T_tracker_cam) const { return T_map_tracker_ ? *T_map_tracker_ * T_tracker_cam : T_tracker_cam; }
   void check_inputs(const ros::WallTimerEvent&);
+  void warn_no_input(const ros::WallTime& now);
   // ROS_*_THROTTLE counts in ROS time, which a looping bag sends backwards, silencing a message
   // until the bag catches up again: complaints are throttled in wall time instead, per kind.
   bool throttled(const std::string& kind, double period = kThrottle);
@@ -152,6 +155,9 @@ class TrackingNode {
 
   // Arrival times (wall clock) per input topic and of the last synchronised frame.
   ros::WallTime last_rgb_, last_depth_, last_info_, last_frame_;
+  ros::WallTime started_ = ros::WallTime::now();
+  ros::Time time_at_last_check_;  // ROS time at the last check without input (unchanged: /clock stopped)
+  bool bag_end_said_ = false;
   std::map<std::string, ros::WallTime> last_complaint_;
   std::string tf_child_;  // the frame map's edge goes to, once known
 
@@ -199,12 +205,13 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param("imu_wait", p_.imu_wait, p_.imu_wait);
   pnh_.param("level_timeout", p_.level_timeout, p_.level_timeout);
   pnh_.param("floor_max_tilt_deg", p_.floor_max_tilt_deg, p_.floor_max_tilt_deg);
+  pnh_.param("no_input_warn", p_.no_input_warn, p_.no_input_warn);
 
   const std::set<std::string> known = {
       "rgb_topic",  "depth_topic",     "camera_info_topic", "queue_size", "sync_slop",  "pose_source",
       "camera_frame", "publish_tf",    "min_valid_depth",   "path_max_poses", "path_period", "map_frame",
       "odom_frame", "base_frame",      "tf_timeout",        "root_wait",  "tracker",    "mapping_keyframes", "stream",
-      "map_level",  "imu_samples",     "imu_wait",          "level_timeout", "floor_max_tilt_deg"};
+      "map_level",  "imu_samples",     "imu_wait",          "level_timeout", "floor_max_tilt_deg", "no_input_warn"};
   for (const std::string& name : unknown_private_params(pnh_, known)) {
     ROS_WARN("tracking: ignoring unknown parameter %s/%s", pnh_.getNamespace().c_str(), name.c_str());
   }
@@ -268,7 +275,10 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   depth_sub_.subscribe(nh_, p_.depth_topic, p_.queue_size, hints);
   info_sub_.subscribe(nh_, p_.camera_info_topic, p_.queue_size, hints);
   rgb_sub_.registerCallback(boost::function<void(const ImageConstPtr&)>(
-      [this](const ImageConstPtr&) { last_rgb_ = ros::WallTime::now(); }));
+      [this](const ImageConstPtr&) {
+        last_rgb_ = ros::WallTime::now();
+        bag_end_said_ = false;
+      }));
   depth_sub_.registerCallback(boost::function<void(const ImageConstPtr&)>(
       [this](const ImageConstPtr&) { last_depth_ = ros::WallTime::now(); }));
   info_sub_.registerCallback(boost::function<void(const CameraInfoConstPtr&)>(
@@ -381,13 +391,57 @@ void TrackingNode::check_inputs(const ros::WallTimerEvent&) {
   const ros::WallTime now = ros::WallTime::now();
   auto recent = [&](const ros::WallTime& t) { return !t.isZero() && (now - t).toSec() < 3.0; };
   const bool any = recent(last_rgb_) || recent(last_depth_) || recent(last_info_);
-  if (!any || recent(last_frame_)) return;
+  if (!any) {
+    warn_no_input(now);
+    return;
+  }
+  if (recent(last_frame_)) return;
   std::string missing;
   if (!recent(last_rgb_)) missing += " colour (" + rgb_sub_.getTopic() + ")";
   if (!recent(last_depth_)) missing += " depth (" + depth_sub_.getTopic() + ")";
   if (!recent(last_info_)) missing += " camera_info (" + info_sub_.getTopic() + ")";
   if (missing.empty()) missing = " none, but their stamps do not pair up (further apart than sync_slop, or out of order)";
   if (!throttled("sync")) ROS_WARN("tracking: inputs arrive but no synchronised frame; missing:%s", missing.c_str());
+}
+
+// Nothing at all arrives (no camera driver, topics under other names, a bag that ended): the
+// synchroniser is silent and the state stays what it was (not_initialised before the first frame),
+// so say it in the log and as a WARN on /diagnostics, where a robot's monitor looks.
+void TrackingNode::warn_no_input(const ros::WallTime& now) {
+  const ros::Time ros_now = ros::Time::now();
+  const bool clock_moved = ros_now != time_at_last_check_;
+  time_at_last_check_ = ros_now;
+  if (p_.no_input_warn <= 0.0) return;
+  const ros::WallTime last = std::max({last_rgb_, last_depth_, last_info_, started_});
+  const double quiet = (now - last).toSec();
+  if (quiet < p_.no_input_warn) return;
+  const std::string topics = rgb_sub_.getTopic() + ", " + depth_sub_.getTopic() + ", " + info_sub_.getTopic();
+  const bool never = last_rgb_.isZero() && last_depth_.isZero() && last_info_.isZero();
+  // A bag that ended (or is paused) stops the clock with its images: say that once, not a WARN a
+  // minute for as long as mapping goes on after it.
+  const bool clock_stopped = ros::Time::isSimTime() && !never && !clock_moved;
+  char text[512];
+  std::snprintf(text, sizeof(text), "no images for %.0f s%s on %s%s", quiet, never ? " (none yet)" : "",
+                topics.c_str(), clock_stopped ? " (the clock stopped too: a bag that ended or is paused)" : "");
+  if (clock_stopped) {
+    if (!bag_end_said_) ROS_INFO("tracking: %s", text);
+    bag_end_said_ = true;
+  } else if (!throttled("no_input", 60.0)) {
+    ROS_WARN("tracking: %s: is the camera driver running (rostopic hz %s)?", text, rgb_sub_.getTopic().c_str());
+  }
+  diagnostic_msgs::DiagnosticStatus status;
+  status.name = "dqo_map: tracking";
+  status.hardware_id = "dqo_map";
+  status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+  status.message = text;
+  diagnostic_msgs::KeyValue kv;
+  kv.key = "seconds_without_input";
+  kv.value = std::to_string(quiet);
+  status.values.push_back(kv);
+  diagnostic_msgs::DiagnosticArray array;
+  array.header.stamp = ros::Time::now();
+  array.status.push_back(status);
+  diag_pub_.publish(array);
 }
 
 bool TrackingNode::prepare_camera(const sensor_msgs::CameraInfo& info) {

@@ -13,6 +13,7 @@
 
 #include "conversions.h"
 #include "object_conversions.h"
+#include "dqo_map/objects/object_overlay.h"
 
 namespace {
 
@@ -227,6 +228,11 @@ TEST(ObjectConversions, Markers) {
     EXPECT_EQ(a.r, b.r);
     EXPECT_EQ(a.g, b.g);
     EXPECT_GT(std::abs(a.r - c.r) + std::abs(a.g - c.g) + std::abs(a.b - c.b), 0.1) << id;
+    // The same colour as the object overlay draws the object in (rviz beside the overlay image).
+    const objects::Rgb drawn = objects::overlay_colour(id);
+    EXPECT_NEAR(a.r * 255.0f, drawn[0], 1e-3) << id;
+    EXPECT_NEAR(a.g * 255.0f, drawn[1], 1e-3) << id;
+    EXPECT_NEAR(a.b * 255.0f, drawn[2], 1e-3) << id;
   }
 }
 
