@@ -435,22 +435,24 @@ void MappingNodelet::on_map_id(const std_msgs::String::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(state_mutex_);
     previous = map_id_;
     resumed = resumed_map_id_;
-    map_id_ = msg->data;
-    resumed_map_id_.clear();
   }
   if (msg->data == previous) return;
   const bool from_other_map = previous.empty() ? (!resumed.empty() && resumed != msg->data) : true;
   if (!from_other_map) {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    map_id_ = msg->data;
+    resumed_map_id_.clear();
     NODELET_INFO("mapping: map '%s'%s", msg->data.c_str(), resumed.empty() ? "" : " (resumed)");
     return;
   }
   // The tracker started a new map: the Gaussians of the old one are in another frame. Keep them in
-  // a file of their own and start empty.
+  // a file of their own (saved under the old identity: map_id_ changes only once the new map is
+  // in place, so that neither the file nor the diagnostics mix the two) and start empty.
   const std::string old_id = previous.empty() ? resumed : previous;
   const std::string kept = (fs::path(p_.output_dir) / ("map_" + old_id + ".dqomap")).string();
   std::string error;
   const auto w = worker();
-  const size_t had = w ? w->with_mapper([](GaussianMapper& m) { return m.map_structure().size(); }) : 0;
+  const size_t had = w ? w->status().gaussians : 0;
   if (had > 0 && dqo::resolve_output_path(p_.output_dir, "map_" + old_id + ".dqomap", &error) &&
       save_to(kept, &error)) {
     NODELET_WARN("mapping: new map '%s' (was '%s'): the old map's %zu Gaussians are kept in %s; starting empty",
@@ -458,8 +460,15 @@ void MappingNodelet::on_map_id(const std_msgs::String::ConstPtr& msg) {
   } else if (had > 0) {
     NODELET_WARN("mapping: new map '%s' (was '%s'): the old map is dropped (%s); starting empty", msg->data.c_str(),
                  old_id.c_str(), error.c_str());
+  } else {
+    NODELET_INFO("mapping: new map '%s' (was '%s', empty)", msg->data.c_str(), old_id.c_str());
   }
   start_worker(/*resume=*/false);
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    map_id_ = msg->data;
+    resumed_map_id_.clear();
+  }
   mapped_at_save_ = mapped_.load();
   cloud_stale_ = true;  // the latched cloud shows the old map
 }

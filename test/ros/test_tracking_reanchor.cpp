@@ -52,6 +52,7 @@ struct Recorder {
   std::vector<MappingStatus> mapping;         // the mapping nodelet's diagnostics, in order
   size_t keyframes = 0;
   dqo::ros_test::RosoutLog log{"tracking"};
+  dqo::ros_test::RosoutLog mapping_log{"mapping"};
 
   void on_tf(const tf2_msgs::TFMessage::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -85,7 +86,10 @@ struct Recorder {
     std::lock_guard<std::mutex> lock(mutex);
     ++keyframes;
   }
-  void on_log(const rosgraph_msgs::Log::ConstPtr& line) { log.on_log(*line); }
+  void on_log(const rosgraph_msgs::Log::ConstPtr& line) {
+    log.on_log(*line);
+    mapping_log.on_log(*line);
+  }
 
   bool saw_tf_at(const ros::Time& t) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -236,7 +240,7 @@ TEST_F(TrackingReanchorTest, AJumpIsLostAndAReplayStartsANewMap) {
         return m && m->map_id == map_b && m->keyframes_in_map >= 2;
       },
       60.0))
-      << "the mapping nodelet did not map the replay into map " << map_b;
+      << "the mapping nodelet did not map the replay into map " << map_b << "\n" << rec_.mapping_log.dump();
   size_t keyframes_replay;
   {
     std::lock_guard<std::mutex> lock(rec_.mutex);
@@ -250,7 +254,7 @@ TEST_F(TrackingReanchorTest, AJumpIsLostAndAReplayStartsANewMap) {
       if (m.map_id != map_b) continue;
       EXPECT_LE(m.keyframes_in_map, static_cast<long>(keyframes_replay)) << "keyframes of map A in map B";
       if (first) {
-        EXPECT_LT(m.gaussians, gaussians_a) << "map B's first status holds map A's Gaussians";
+        EXPECT_LT(m.gaussians, gaussians_a) << "map B's first status holds map A's Gaussians\n" << rec_.mapping_log.dump();
         first = false;
       }
     }
@@ -259,7 +263,8 @@ TEST_F(TrackingReanchorTest, AJumpIsLostAndAReplayStartsANewMap) {
               gaussians_a, keyframes_replay);
   const std::string work_dir = ros::param::param<std::string>("~work_dir", "");
   ASSERT_FALSE(work_dir.empty());
-  EXPECT_TRUE(fs::exists(fs::path(work_dir) / ("map_" + map_a + ".dqomap"))) << "map A not kept in a file of its own";
+  EXPECT_TRUE(wait_for([&] { return fs::exists(fs::path(work_dir) / ("map_" + map_a + ".dqomap")); }, 10.0))
+      << "map A not kept in a file of its own\n" << rec_.mapping_log.dump();
 }
 
 }  // namespace
