@@ -16,6 +16,7 @@ One run, in order (each step needs the one before):
 import math
 import os
 import re
+import shutil
 import signal
 import subprocess
 import tempfile
@@ -24,6 +25,7 @@ import time
 import unittest
 
 import numpy as np
+import roslib.packages
 import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray
@@ -31,7 +33,8 @@ from dqo_map.msg import KeyFrame, KeyFrameObjects
 from sensor_msgs.msg import Image, PointCloud2
 from std_msgs.msg import String
 
-NODELET = '/usr/lib/nodelet/nodelet'
+# The nodelet tool (Debian: /usr/lib/nodelet/nodelet; ROS distributions: lib/nodelet/nodelet).
+NODELET = (roslib.packages.find_node('nodelet', 'nodelet') or ['/usr/lib/nodelet/nodelet'])[0]
 NS = '/dqo_map_lifecycle'   # a namespace of its own: nothing else in the test graph listens
 DIAG_PERIOD = 0.25
 SHUTDOWN_TIMEOUT = 3.0
@@ -135,6 +138,7 @@ class TestMappingLifecycle(unittest.TestCase):
     def tearDown(self):
         for p in reversed(self.procs):
             p.stop()
+        shutil.rmtree(self.work, ignore_errors=True)
 
     def start_manager(self, tag):
         manager = Process([NODELET, 'manager', '__name:=manager_' + tag],
