@@ -29,6 +29,7 @@ MappingWorker::~MappingWorker() {
   }
   abandon_ = true;
   wake_.notify_all();
+  turn_.notify_all();
   if (thread_.joinable()) thread_.join();
 }
 
@@ -40,6 +41,7 @@ bool MappingWorker::stop(double timeout_s) {
   abandon_ = true;
   wake_.notify_all();
   idle_.notify_all();
+  turn_.notify_all();
   std::unique_lock<std::mutex> lock(inbox_mutex_);
   const bool ended = idle_.wait_for(lock, std::chrono::duration<double>(std::max(0.0, timeout_s)),
                                     [this] { return finished_; });
@@ -149,7 +151,7 @@ void MappingWorker::run() {
       step_started_ns_ = 0;
     }
     {
-      std::lock_guard<std::mutex> lock(inbox_mutex_);
+      std::unique_lock<std::mutex> lock(inbox_mutex_);
       errors_.insert(errors_.end(), errors.begin(), errors.end());
       if (report) {
         reports_.push_back(std::move(*report));
@@ -157,8 +159,12 @@ void MappingWorker::run() {
       }
       more_ready_ = more;
       busy_ = false;
+      idle_.notify_all();
+      // Someone found the mapper busy (try_with_mapper): leave it free for a moment.
+      if (want_turn_ && more) {
+        turn_.wait_for(lock, std::chrono::duration<double>(kTurnWindow), [this] { return !want_turn_ || stop_; });
+      }
     }
-    idle_.notify_all();
   }
 }
 

@@ -98,7 +98,8 @@ class MappingNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(worker_mutex_);
     return worker_;
   }
-  void start_worker(bool resume);
+  // False (nothing replaced) once shutdown began.
+  bool start_worker(bool resume);
 
   // Inputs (single-threaded queue, in arrival order).
   void on_keyframe(const dqo_map::KeyFrame::ConstPtr& msg);
@@ -114,17 +115,9 @@ class MappingNodelet : public nodelet::Nodelet {
   void shutdown();
   void on_autosave(const ros::WallTimerEvent&);
   void publish_diagnostics();
-  // wait false: false when the mapper was busy (a step in progress), nothing published; true:
-  // waits for the step in progress.
-  bool publish_render(bool wait);
-  bool publish_gaussians(bool wait);
-  // fn(mapper), waiting for the step in progress or not (then false when it is busy).
-  template <typename Fn>
-  static bool run_on_mapper(MappingWorker& w, bool wait, Fn&& fn) {
-    if (!wait) return w.try_with_mapper(fn);
-    w.with_mapper(fn);
-    return true;
-  }
+  // False when the mapper was busy (a step in progress): nothing published, tried again later.
+  bool publish_render();
+  bool publish_gaussians();
   void publish_mapped_objects();
 
   // Services (multi-threaded queue).
@@ -145,6 +138,7 @@ class MappingNodelet : public nodelet::Nodelet {
 
   mutable std::mutex worker_mutex_;
   std::shared_ptr<MappingWorker> worker_;  // replaced on a new map (map_id) or never
+  bool shutting_down_ = false;             // guarded by worker_mutex_: no new worker from then on
 
   mutable std::mutex state_mutex_;  // guards the fields below
   std::string map_id_;              // the tracker's map identity (empty until it says)
@@ -186,24 +180,37 @@ MappingNodelet::~MappingNodelet() { shutdown(); }
   } while (false)
 
 void MappingNodelet::shutdown() {
-  // No more work: inputs and timers first, so that nothing new reaches the worker.
-  for (ros::Subscriber* s : {&keyframe_sub_, &kf_objects_sub_, &poses_sub_, &objects_sub_, &events_sub_, &map_id_sub_}) {
-    s->shutdown();
+  // Inputs, timers and services may be waiting for the step in progress (a new map's save, a
+  // query), and stopping a subscriber, timer or service waits for its callback in progress: so the
+  // step is cut short first, then they are stopped. No new map is started from here on.
+  std::shared_ptr<MappingWorker> w;
+  {
+    std::lock_guard<std::mutex> lock(worker_mutex_);
+    shutting_down_ = true;
+    w = worker_;
   }
-  report_timer_.stop();
-  status_timer_.stop();
-  autosave_timer_.stop();
-  const auto w = worker();
-  if (!w) return;
   const auto t0 = std::chrono::steady_clock::now();
-  const double step = w->step_seconds();
+  const double step = w ? w->step_seconds() : 0.0;
   // Keyframes that are mapped are saved; those still queued are dropped (the tracker's next run
   // gives new ones) and the step in progress is cut short: shutdown must end before roslaunch
   // escalates to SIGTERM.
-  if (!w->stop(p_.shutdown_timeout)) {
-    DQO_SHUTDOWN_LOG(ERROR, "mapping: the mapping step in progress did not end within shutdown_timeout (%.1f s): exiting without "
-              "saving (the last autosave, %s, stays)", p_.shutdown_timeout, autosave_path_.c_str());
-    // Its thread still uses the worker: it must outlive this nodelet (the process is ending).
+  const bool stopped = !w || w->stop(p_.shutdown_timeout);
+  if (stopped) {
+    for (ros::Subscriber* s : {&keyframe_sub_, &kf_objects_sub_, &poses_sub_, &objects_sub_, &events_sub_,
+                               &map_id_sub_}) {
+      s->shutdown();
+    }
+    report_timer_.stop();
+    status_timer_.stop();
+    autosave_timer_.stop();
+  }
+  if (!w) return;
+  if (!stopped) {
+    DQO_SHUTDOWN_LOG(ERROR, "mapping: the mapping step in progress did not end within shutdown_timeout (%.1f s): "
+                     "exiting without saving (the last autosave, %s, stays)", p_.shutdown_timeout,
+                     autosave_path_.c_str());
+    // Its thread still uses the worker, and callbacks may wait for it: both must outlive this
+    // nodelet (the process is ending).
     new std::shared_ptr<MappingWorker>(w);  // NOLINT: deliberately never freed
     return;
   }
@@ -216,9 +223,9 @@ void MappingNodelet::shutdown() {
   std::string error;
   const dqo::mapping::MappingStatus status = w->status();
   if (save_to(autosave_path_, &error)) {
-    DQO_SHUTDOWN_LOG(INFO, "mapping: saved the map (%zu keyframes, %zu Gaussians) to %s at shutdown, %.1f s after it began%s",
-             status.keyframes_in_map, status.gaussians, autosave_path_.c_str(), dqo::ms_since(t0) / 1000.0,
-             step > 0.0 ? " (the mapping step in progress was cut short)" : "");
+    DQO_SHUTDOWN_LOG(INFO, "mapping: saved the map (%zu keyframes, %zu Gaussians) to %s at shutdown, %.1f s after it "
+                     "began%s", status.keyframes_in_map, status.gaussians, autosave_path_.c_str(),
+                     dqo::ms_since(t0) / 1000.0, step > 0.0 ? " (the mapping step in progress was cut short)" : "");
   } else {
     DQO_SHUTDOWN_LOG(ERROR, "mapping: shutdown autosave failed: %s", error.c_str());
   }
@@ -274,7 +281,7 @@ bool MappingNodelet::read_params(std::string* error) {
   return true;
 }
 
-void MappingNodelet::start_worker(bool resume) {
+bool MappingNodelet::start_worker(bool resume) {
   auto w = std::make_shared<MappingWorker>(mapper_params_);
   if (resume && fs::exists(autosave_path_)) {
     std::string error, warning;
@@ -297,7 +304,9 @@ void MappingNodelet::start_worker(bool resume) {
     }
   }
   std::lock_guard<std::mutex> lock(worker_mutex_);
+  if (shutting_down_) return false;  // a new map announced during shutdown: the old one is saved
   worker_ = std::move(w);
+  return true;
 }
 
 void MappingNodelet::onInit() {
@@ -463,7 +472,7 @@ void MappingNodelet::on_map_id(const std_msgs::String::ConstPtr& msg) {
   } else {
     NODELET_INFO("mapping: new map '%s' (was '%s', empty)", msg->data.c_str(), old_id.c_str());
   }
-  start_worker(/*resume=*/false);
+  if (!start_worker(/*resume=*/false)) return;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     map_id_ = msg->data;
@@ -511,12 +520,12 @@ void MappingNodelet::on_reports(const ros::WallTimerEvent&) {
     publish_mapped_objects();
   }
   // The render and the cloud need the map itself: taken when the mapper is free, else tried again
-  // at the next tick; only when that failed for three periods (steps back to back), waiting for
-  // the step in progress. Diagnostics have a timer of their own and never wait.
+  // at the next tick (the worker then leaves a turn between two steps: try_with_mapper). Never
+  // waiting for a step: a timer callback in progress holds up stopping the timer (shutdown).
   if ((now - last_render_).toSec() >= p_.render_period && mapped_.load() != mapped_at_render_.load() &&
       (render_pub_.getNumSubscribers() > 0 || render_ids_pub_.getNumSubscribers() > 0)) {
     const uint64_t mapped = mapped_.load();
-    if (publish_render((now - last_render_).toSec() >= 3 * p_.render_period)) {
+    if (publish_render()) {
       last_render_ = now;
       mapped_at_render_ = mapped;
     }
@@ -525,7 +534,7 @@ void MappingNodelet::on_reports(const ros::WallTimerEvent&) {
   if ((now - last_cloud_).toSec() >= p_.gaussians_period &&
       (mapped_.load() != mapped_at_cloud_.load() || cloud_stale_.load())) {
     const uint64_t mapped = mapped_.load();
-    if (publish_gaussians((now - last_cloud_).toSec() >= 3 * p_.gaussians_period)) {
+    if (publish_gaussians()) {
       last_cloud_ = now;
       mapped_at_cloud_ = mapped;
       cloud_stale_ = false;
@@ -627,13 +636,13 @@ void MappingNodelet::publish_mapped_objects() {
   objects_pub_.publish(a);
 }
 
-bool MappingNodelet::publish_render(bool wait) {
+bool MappingNodelet::publish_render() {
   const auto w = worker();
   if (!w) return false;
   dqo::gs::RenderOutput r;
   double stamp = 0.0;
   bool have = false;
-  const bool ran = run_on_mapper(*w, wait, [&](GaussianMapper& m) {
+  const bool ran = w->try_with_mapper([&](GaussianMapper& m) {
     if (m.keyframe_poses().empty()) return;
     const dqo::mapping::KeyframePose& k = m.keyframe_poses().back();
     stamp = k.stamp;
@@ -650,11 +659,11 @@ bool MappingNodelet::publish_render(bool wait) {
   return true;
 }
 
-bool MappingNodelet::publish_gaussians(bool wait) {
+bool MappingNodelet::publish_gaussians() {
   const auto w = worker();
   if (!w) return false;
   sensor_msgs::PointCloud2 cloud;
-  const bool ran = run_on_mapper(*w, wait, [&](GaussianMapper& m) {
+  const bool ran = w->try_with_mapper([&](GaussianMapper& m) {
     const size_t n = m.map().size();
     const size_t stride = (n + p_.gaussians_max_points - 1) / p_.gaussians_max_points;
     cloud = dqo::ros_bridge::to_gaussian_cloud(m.map(), header(), std::max<size_t>(1, stride));

@@ -192,5 +192,32 @@ TEST(MappingWorker, TryWithMapperSkipsWhileAStepRuns) {
   EXPECT_EQ(ran, 1);
 }
 
+// Steps back to back: a try that found the mapper busy gets a turn between two steps, long before
+// the queue is mapped (else a render or a cloud would wait for the end of the input).
+TEST(MappingWorker, TryWithMapperGetsATurnBetweenStepsBackToBack) {
+  GaussianMapperParams p = params();
+  p.trainer.iterations = 100;
+  MappingWorker worker(p);
+  worker.set_objects(testing::truth(0).objects);
+  for (KeyframeId id = 1; id <= 5; ++id) {
+    worker.add_keyframe(keyframe(id));
+    worker.add_keyframe_objects(objects(id));
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  while (worker.step_seconds() == 0.0) {
+    ASSERT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "no step started";
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  size_t mapped_then = 0;
+  int tries = 0;
+  while (!worker.try_with_mapper([&](GaussianMapper& m) { mapped_then = m.keyframes_mapped(); })) {
+    ++tries;
+    ASSERT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(60)) << "never a turn";
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the nodelet's timer tries every 100 ms
+  }
+  EXPECT_GE(tries, 1) << "the first try came during a step";
+  EXPECT_LE(mapped_then, 2u) << "a turn only after " << mapped_then << " of 5 steps";
+}  // the destructor cuts the rest short
+
 }  // namespace
 }  // namespace dqo::mapping

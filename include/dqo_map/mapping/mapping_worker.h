@@ -92,15 +92,26 @@ class MappingWorker {
     return fn(mapper_);
   }
   // fn(mapper) only when the mapper is free now (no step in progress, nobody waiting); false when
-  // it was not run. For periodic publishing, which would rather skip a round than wait.
+  // it was not run. For periodic publishing, which must never wait for a step (a timer callback
+  // that waits also holds up the nodelet's shutdown). A call that failed asks for a turn: after
+  // its step the worker leaves the mapper free for up to kTurnWindow before the next one, so that
+  // steps back to back do not shut the caller out for ever.
   template <typename Fn>
   bool try_with_mapper(Fn&& fn) {
-    if (!mapper_mutex_.try_lock()) return false;
+    if (!mapper_mutex_.try_lock()) {
+      want_turn_ = true;
+      return false;
+    }
     std::lock_guard<TicketLock> lock(mapper_mutex_, std::adopt_lock);
     const StatusRefresh refresh{this};
     fn(mapper_);
+    if (want_turn_.exchange(false)) {
+      { const std::lock_guard<std::mutex> sync(inbox_mutex_); }  // the worker waits or has not checked yet
+      turn_.notify_all();
+    }
     return true;
   }
+  static constexpr double kTurnWindow = 0.25;  // seconds; the nodelet tries every 0.1 s
 
   // The snapshot taken after the last step or with_mapper(): never waits for a step.
   MappingStatus status() const;
@@ -163,6 +174,8 @@ class MappingWorker {
   std::atomic<int64_t> step_started_ns_{0};  // steady clock; 0: no step in progress
   std::atomic<bool> stop_{false};
   std::atomic<bool> abandon_{false};  // the trainer's stop flag
+  std::atomic<bool> want_turn_{false};  // a try_with_mapper() found the mapper busy
+  std::condition_variable turn_;        // with inbox_mutex_: want_turn_ served, or stop
   std::atomic<size_t> mapped_{0};
   std::thread thread_;  // last: starts after everything above exists
 };
