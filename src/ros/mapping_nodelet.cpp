@@ -166,17 +166,14 @@ class MappingNodelet : public nodelet::Nodelet {
 
 MappingNodelet::~MappingNodelet() { shutdown(); }
 
-// Shutdown's lines: after ros::shutdown (a manager's SIGINT) rosconsole prints nothing, so they go
-// to stderr then, which roslaunch shows and logs.
-#define DQO_SHUTDOWN_LOG(level, ...)                                      \
-  do {                                                                    \
-    if (ros::ok()) {                                                      \
-      ROS_##level(__VA_ARGS__);                                           \
-    } else {                                                              \
-      std::fprintf(stderr, "[" #level "] [%.3f] ", ros::WallTime::now().toSec()); \
-      std::fprintf(stderr, __VA_ARGS__);                                  \
-      std::fprintf(stderr, "\n");                                         \
-    }                                                                     \
+// Shutdown's lines go to stderr, which roslaunch shows (output=screen) or keeps in the node's log:
+// during a manager's shutdown rosconsole's output was seen to get lost (the lines of an unload
+// run while ros::shutdown is under way), and /rosout is gone by then anyway.
+#define DQO_SHUTDOWN_LOG(level, ...)                                                  \
+  do {                                                                                \
+    std::fprintf(stderr, "[" #level "] [%.3f] ", ros::WallTime::now().toSec());       \
+    std::fprintf(stderr, __VA_ARGS__);                                                \
+    std::fprintf(stderr, "\n");                                                       \
   } while (false)
 
 void MappingNodelet::shutdown() {

@@ -12,6 +12,9 @@ One run, in order (each step needs the one before):
      seconds (roslaunch escalates to SIGTERM after 15 s), having written the autosave after the
      signal, holding both keyframes (the long step cut short);
   5. a new manager resumes from that autosave (dqo::mapping::load_map_file): 2 keyframes.
+And through roslaunch (launch/mapping.launch: a manager and a `nodelet load` client, as a user runs
+it): SIGINT to roslaunch during a long step ends it without "escalating to SIGTERM", with the
+autosave written.
 """
 import math
 import os
@@ -89,9 +92,11 @@ def keyframe_objects(kf):
 class Process:
     """A child process with its output in a file (read by the checks)."""
 
-    def __init__(self, args, log_path):
+    def __init__(self, args, log_path, ns=NS):
         # Line-buffered: the checks read the output while the process runs.
-        env = dict(os.environ, ROS_NAMESPACE=NS, ROSCONSOLE_STDOUT_LINE_BUFFERED='1')
+        env = dict(os.environ, ROSCONSOLE_STDOUT_LINE_BUFFERED='1')
+        if ns:
+            env['ROS_NAMESPACE'] = ns
         self.log_path = log_path
         self.log = open(log_path, 'w')
         self.proc = subprocess.Popen(args, stdout=self.log, stderr=subprocess.STDOUT, env=env)
@@ -130,15 +135,21 @@ class TestMappingLifecycle(unittest.TestCase):
                         'trainer': {'iterations': 3000, 'newest_share': 0.9}},
         })
         rospy.Subscriber('/diagnostics', DiagnosticArray, self.on_diag, queue_size=100)
-        self.kf_pub = rospy.Publisher(NS + '/keyframes', KeyFrame, queue_size=10, latch=True)
-        self.obj_pub = rospy.Publisher(NS + '/keyframe_objects', KeyFrameObjects, queue_size=10, latch=True)
-        self.id_pub = rospy.Publisher(NS + '/map_id', String, queue_size=1, latch=True)
+        self.advertise(NS)
+
+    def advertise(self, ns):
+        """The nodelet's inputs in namespace ns (its diagnostics are those of ns/mapping)."""
+        self.ns = ns
+        self.kf_pub = rospy.Publisher(ns + '/keyframes', KeyFrame, queue_size=10, latch=True)
+        self.obj_pub = rospy.Publisher(ns + '/keyframe_objects', KeyFrameObjects, queue_size=10, latch=True)
+        self.id_pub = rospy.Publisher(ns + '/map_id', String, queue_size=1, latch=True)
         self.id_pub.publish(String(data='lifecycle'))
 
     def tearDown(self):
         for p in reversed(self.procs):
             p.stop()
-        shutil.rmtree(self.work, ignore_errors=True)
+        if not os.environ.get('DQO_TEST_KEEP'):
+            shutil.rmtree(self.work, ignore_errors=True)
 
     def start_manager(self, tag):
         manager = Process([NODELET, 'manager', '__name:=manager_' + tag],
@@ -151,7 +162,7 @@ class TestMappingLifecycle(unittest.TestCase):
 
     def on_diag(self, msg):
         for s in msg.status:
-            if s.name.startswith('dqo_map: mapping ' + NS + '/mapping'):
+            if s.name == 'dqo_map: mapping ' + self.ns + '/mapping':
                 with self.lock:
                     self.diags.append((time.time(), {kv.key: kv.value for kv in s.values}))
 
@@ -241,6 +252,38 @@ class TestMappingLifecycle(unittest.TestCase):
         self.assertIsNotNone(resumed, manager_b.text()[-3000:])
         self.assertEqual(int(resumed.group(2)), 2)
         self.assertEqual(int(resumed.group(1)), int(m.group(2)))
+
+    def test_roslaunch_sigint(self):
+        """SIGINT to roslaunch (mapping.launch) during a long step: no escalation, the autosave written."""
+        config = os.path.join(self.work, 'slow.yaml')
+        with open(config, 'w') as f:
+            f.write('mapping:\n  backend: cpu\n  threads: 1\n  objects_timeout: 1000.0\n'
+                    '  trainer:\n    iterations: 3000\n    newest_share: 0.9\n')
+        self.advertise('/dqo_map')
+        log_path = os.path.join(self.work, 'roslaunch.log')
+        launch = Process(['roslaunch', 'dqo_map', 'mapping.launch', 'config:=' + config, 'output_dir:=' + self.work,
+                          'max_queue:=0', 'fresh:=true', 'output:=screen'], log_path, ns=None)
+        self.procs.append(launch)
+        self.wait_for('the nodelet', lambda d: True, 40)
+        time.sleep(1.0)
+        self.send(keyframe(1, 1000.0, 32, 24))
+        self.wait_for('keyframe 1 mapped', lambda d: int(d['keyframes mapped']) >= 1, 30)
+        self.send(keyframe(2, 1001.0, 640, 480))
+        self.wait_for('the step of keyframe 2', lambda d: float(d['mapping step in progress (s)']) > 0.5, 30)
+        signalled = time.time()
+        launch.proc.send_signal(signal.SIGINT)
+        try:
+            launch.proc.wait(2 * ESCALATION_S)
+        except subprocess.TimeoutExpired:
+            self.fail('roslaunch still running %.0f s after SIGINT:\n%s' % (2 * ESCALATION_S, launch.text()[-3000:]))
+        took = time.time() - signalled
+        out = launch.text()
+        self.assertNotIn('escalating', out, out[-3000:])
+        autosave = os.path.join(self.work, 'autosave.dqomap')
+        self.assertTrue(os.path.exists(autosave), out[-3000:])
+        self.assertGreaterEqual(os.path.getmtime(autosave), signalled - 0.01)
+        self.assertRegex(out, r'saved the map \(2 keyframes, \d+ Gaussians\)')
+        rospy.loginfo('roslaunch ended %.1f s after SIGINT', took)
 
 
 if __name__ == '__main__':
