@@ -9,9 +9,10 @@
 // worker's snapshot (taken between steps) and counters; the render and the cloud skip a round when
 // the mapper is busy. The gaussians cloud is latched (a restarted rviz sees the map at once).
 //
-// Shutdown (the destructor: the manager's SIGINT, or an unload): no more inputs or timers, the
-// step in progress is cut short (the trainer's stop flag) and waited for at most
-// shutdown_timeout seconds, then the map of the keyframes mapped is written to the autosave.
+// Shutdown (the destructor: the manager's SIGINT, or an unload): the step in progress is cut
+// short (the trainer's stop flag) and waited for at most shutdown_timeout seconds, the queued
+// keyframes are dropped, inputs and timers stop, then the map of the keyframes mapped is written
+// to the autosave (config/mapping_node.yaml says how this stays under roslaunch's SIGTERM).
 //
 // Files: everything under output_dir; the autosave (autosave_file, every autosave_period seconds
 // when something changed, and at shutdown) is what a restarted nodelet resumes from when `resume`
