@@ -177,6 +177,7 @@ KeyframeReport GaussianTrainer::add_keyframe(TrainingKeyframe keyframe) {
   with_memory_retry([&] { report.losses = train(params_.iterations); }, &report);
   report.train_ms = ms_since(t);
   report.iterations = static_cast<int>(report.losses.size());
+  report.abandoned = report.iterations < params_.iterations && stop_ && stop_->load();
   if (!report.losses.empty()) {
     report.loss_first = report.losses.front();
     report.loss_last = report.losses.back();
@@ -262,7 +263,10 @@ std::vector<double> GaussianTrainer::train(int iterations) {
     if (kf.rgb_float.data.empty()) kf.rgb_float = to_float_rgb(kf.rgb);
   std::vector<double> losses;
   losses.reserve(static_cast<size_t>(iterations));
-  for (int it = 0; it < iterations; ++it) losses.push_back(iterate(pick_keyframe()));
+  for (int it = 0; it < iterations; ++it) {
+    if (stop_ && stop_->load(std::memory_order_relaxed)) break;
+    losses.push_back(iterate(pick_keyframe()));
+  }
   return losses;
 }
 

@@ -1,5 +1,7 @@
 #include "dqo_map/mapping/mapping_worker.h"
 
+#include <algorithm>
+#include <chrono>
 #include <exception>
 #include <optional>
 #include <string>
@@ -7,16 +9,67 @@
 
 namespace dqo::mapping {
 
-MappingWorker::MappingWorker(const GaussianMapperParams& params)
-    : mapper_(params), thread_([this] { run(); }) {}
+namespace {
+int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+}  // namespace
+
+MappingWorker::MappingWorker(const GaussianMapperParams& params) : mapper_(params) {
+  mapper_.set_stop_flag(&abandon_);
+  refresh_status();
+  thread_ = std::thread([this] { run(); });
+}
 
 MappingWorker::~MappingWorker() {
   {
     std::lock_guard<std::mutex> lock(inbox_mutex_);
     stop_ = true;
   }
+  abandon_ = true;
   wake_.notify_all();
+  turn_.notify_all();
   if (thread_.joinable()) thread_.join();
+}
+
+bool MappingWorker::stop(double timeout_s) {
+  {
+    std::lock_guard<std::mutex> lock(inbox_mutex_);
+    stop_ = true;
+  }
+  abandon_ = true;
+  wake_.notify_all();
+  idle_.notify_all();
+  turn_.notify_all();
+  std::unique_lock<std::mutex> lock(inbox_mutex_);
+  const bool ended = idle_.wait_for(lock, std::chrono::duration<double>(std::max(0.0, timeout_s)),
+                                    [this] { return finished_; });
+  lock.unlock();
+  if (ended && thread_.joinable()) thread_.join();
+  return ended;
+}
+
+void MappingWorker::refresh_status() {
+  MappingStatus s;
+  s.waiting = mapper_.waiting();
+  s.ready = mapper_.ready();
+  s.gaussians = mapper_.map_structure().size();
+  s.bytes = mapper_.map_structure().bytes_used();
+  s.keyframes_in_map = mapper_.keyframes_mapped();
+  s.objects = mapper_.list_objects();
+  std::lock_guard<std::mutex> lock(status_mutex_);
+  status_ = std::move(s);
+}
+
+MappingStatus MappingWorker::status() const {
+  std::lock_guard<std::mutex> lock(status_mutex_);
+  return status_;
+}
+
+double MappingWorker::step_seconds() const {
+  const int64_t started = step_started_ns_.load();
+  return started == 0 ? 0.0 : static_cast<double>(steady_ns() - started) * 1e-9;
 }
 
 void MappingWorker::push(Input input) {
@@ -47,6 +100,8 @@ void MappingWorker::hand_over(Input& input, std::vector<std::string>* errors) {
     mapper_.set_objects(std::move(*r));
   } else if (auto* p = std::get_if<std::map<KeyframeId, SE3>>(&input)) {
     mapper_.set_keyframe_poses(*p);
+  } else if (std::holds_alternative<FlushInput>(input)) {
+    mapper_.flush();
   }
 }
 
@@ -57,7 +112,13 @@ void MappingWorker::run() {
     {
       std::unique_lock<std::mutex> lock(inbox_mutex_);
       wake_.wait(lock, [this] { return stop_ || !inbox_.empty() || flush_ || more_ready_; });
-      if (stop_) return;
+      if (stop_) {
+        finished_ = true;
+        busy_ = false;
+        lock.unlock();
+        idle_.notify_all();
+        return;
+      }
       batch.swap(inbox_);
       flush = flush_;
       flush_ = false;
@@ -70,6 +131,7 @@ void MappingWorker::run() {
     bool more = false;
     {
       std::lock_guard<TicketLock> lock(mapper_mutex_);
+      step_started_ns_ = steady_ns();
       for (Input& input : batch) hand_over(input, &errors);
       if (flush) mapper_.flush();
       // A step that throws (the GPU failing beyond running out of memory, which the trainer
@@ -85,9 +147,11 @@ void MappingWorker::run() {
                          std::to_string(report->trainer.pruned_memory) + " Gaussians and went on");
       }
       more = mapper_.ready() > 0;
+      refresh_status();
+      step_started_ns_ = 0;
     }
     {
-      std::lock_guard<std::mutex> lock(inbox_mutex_);
+      std::unique_lock<std::mutex> lock(inbox_mutex_);
       errors_.insert(errors_.end(), errors.begin(), errors.end());
       if (report) {
         reports_.push_back(std::move(*report));
@@ -95,18 +159,16 @@ void MappingWorker::run() {
       }
       more_ready_ = more;
       busy_ = false;
+      idle_.notify_all();
+      // Someone found the mapper busy (try_with_mapper): leave it free for a moment.
+      if (want_turn_ && more) {
+        turn_.wait_for(lock, std::chrono::duration<double>(kTurnWindow), [this] { return !want_turn_ || stop_; });
+      }
     }
-    idle_.notify_all();
   }
 }
 
-void MappingWorker::flush() {
-  {
-    std::lock_guard<std::mutex> lock(inbox_mutex_);
-    flush_ = true;
-  }
-  wake_.notify_one();
-}
+void MappingWorker::flush() { push(FlushInput{}); }
 
 void MappingWorker::wait_until_idle(bool flush) {
   std::unique_lock<std::mutex> lock(inbox_mutex_);

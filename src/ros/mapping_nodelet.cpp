@@ -4,8 +4,15 @@
 // latest mapped keyframe), gaussians (PointCloud2, throttled), mapped_objects (the objects with
 // their Gaussian counts, latched), /diagnostics. Services: get_object, extract_object, save_map,
 // load_map. The stage runs on MappingWorker's thread: input callbacks convert and queue and never
-// wait for mapping; services and timers run on the nodelet's multi-threaded queue and wait at most
-// for the mapping step in progress.
+// wait for mapping; services run on the nodelet's multi-threaded queue and wait at most for the
+// mapping step in progress. Timers never wait for a step: diagnostics and progress come from the
+// worker's snapshot (taken between steps) and counters; the render and the cloud skip a round when
+// the mapper is busy. The gaussians cloud is latched (a restarted rviz sees the map at once).
+//
+// Shutdown (the destructor: the manager's SIGINT, or an unload): the step in progress is cut
+// short (the trainer's stop flag) and waited for at most shutdown_timeout seconds, the queued
+// keyframes are dropped, inputs and timers stop, then the map of the keyframes mapped is written
+// to the autosave (config/mapping_node.yaml says how this stays under roslaunch's SIGTERM).
 //
 // Files: everything under output_dir; the autosave (autosave_file, every autosave_period seconds
 // when something changed, and at shutdown) is what a restarted nodelet resumes from when `resume`
@@ -14,6 +21,7 @@
 #include <algorithm>
 #include <chrono>
 #include <atomic>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -80,6 +88,9 @@ class MappingNodelet : public nodelet::Nodelet {
     // mapped as background: the input stopped (a bag ended, a detector died), so keyframe time,
     // which objects_timeout counts, stands still.
     double idle_flush = 10.0;
+    // Seconds the shutdown waits for the mapping step in progress (cut short at its next training
+    // iteration) before it saves; see config/mapping_node.yaml.
+    double shutdown_timeout = 5.0;
   };
 
   void onInit() override;
@@ -88,7 +99,8 @@ class MappingNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(worker_mutex_);
     return worker_;
   }
-  void start_worker(bool resume);
+  // False (nothing replaced) once shutdown began.
+  bool start_worker(bool resume);
 
   // Inputs (single-threaded queue, in arrival order).
   void on_keyframe(const dqo_map::KeyFrame::ConstPtr& msg);
@@ -100,10 +112,13 @@ class MappingNodelet : public nodelet::Nodelet {
 
   // Timers (multi-threaded queue).
   void on_reports(const ros::WallTimerEvent&);
+  void on_status(const ros::WallTimerEvent&);
+  void shutdown();
   void on_autosave(const ros::WallTimerEvent&);
   void publish_diagnostics();
-  void publish_render();
-  void publish_gaussians();
+  // False when the mapper was busy (a step in progress): nothing published, tried again later.
+  bool publish_render();
+  bool publish_gaussians();
   void publish_mapped_objects();
 
   // Services (multi-threaded queue).
@@ -124,6 +139,7 @@ class MappingNodelet : public nodelet::Nodelet {
 
   mutable std::mutex worker_mutex_;
   std::shared_ptr<MappingWorker> worker_;  // replaced on a new map (map_id) or never
+  bool shutting_down_ = false;             // guarded by worker_mutex_: no new worker from then on
 
   mutable std::mutex state_mutex_;  // guards the fields below
   std::string map_id_;              // the tracker's map identity (empty until it says)
@@ -137,7 +153,7 @@ class MappingNodelet : public nodelet::Nodelet {
   std::atomic<uint64_t> received_{0}, refused_{0}, mapped_{0}, dropped_{0}, errors_{0};
   std::atomic<uint64_t> mapped_at_save_{0}, mapped_at_render_{0}, mapped_at_cloud_{0};
   std::atomic<bool> objects_dirty_{false};
-  ros::WallTime last_progress_, last_render_, last_cloud_, last_diag_, last_objects_;
+  ros::WallTime last_progress_, last_render_, last_cloud_, last_objects_;
   std::atomic<int64_t> last_keyframe_wall_ns_{0};  // wall time of the newest keyframe
   std::atomic<bool> flushed_idle_{false};          // flushed since that keyframe
   uint64_t mapped_at_progress_ = 0;
@@ -145,22 +161,71 @@ class MappingNodelet : public nodelet::Nodelet {
   ros::Subscriber keyframe_sub_, kf_objects_sub_, poses_sub_, objects_sub_, events_sub_, map_id_sub_;
   ros::Publisher render_pub_, render_ids_pub_, cloud_pub_, diag_pub_, objects_pub_;
   ros::ServiceServer get_srv_, extract_srv_, save_srv_, load_srv_;
-  ros::WallTimer report_timer_, autosave_timer_;
+  ros::WallTimer report_timer_, status_timer_, autosave_timer_;
+  std::atomic<bool> cloud_stale_{true};  // the latched cloud is not of the current map
 };
 
-MappingNodelet::~MappingNodelet() {
-  report_timer_.stop();
-  autosave_timer_.stop();
-  const auto w = worker();
-  if (!w || p_.autosave_period < 0.0) return;
-  // Keyframes that are mapped are saved; those still queued are not waited for (shutdown must be
-  // quick), the tracker's next run gives new ones.
-  if (mapped_.load() == mapped_at_save_.load()) return;
+MappingNodelet::~MappingNodelet() { shutdown(); }
+
+// Shutdown's lines go to stderr, which roslaunch shows (output=screen) or keeps in the node's log:
+// during a manager's shutdown rosconsole's output was seen to get lost (the lines of an unload
+// run while ros::shutdown is under way), and /rosout is gone by then anyway.
+#define DQO_SHUTDOWN_LOG(level, ...)                                                  \
+  do {                                                                                \
+    std::fprintf(stderr, "[" #level "] [%.3f] ", ros::WallTime::now().toSec());       \
+    std::fprintf(stderr, __VA_ARGS__);                                                \
+    std::fprintf(stderr, "\n");                                                       \
+  } while (false)
+
+void MappingNodelet::shutdown() {
+  // Inputs, timers and services may be waiting for the step in progress (a new map's save, a
+  // query), and stopping a subscriber, timer or service waits for its callback in progress: so the
+  // step is cut short first, then they are stopped. No new map is started from here on.
+  std::shared_ptr<MappingWorker> w;
+  {
+    std::lock_guard<std::mutex> lock(worker_mutex_);
+    shutting_down_ = true;
+    w = worker_;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const double step = w ? w->step_seconds() : 0.0;
+  // Keyframes that are mapped are saved; those still queued are dropped (the tracker's next run
+  // gives new ones) and the step in progress is cut short: shutdown must end before roslaunch
+  // escalates to SIGTERM.
+  const bool stopped = !w || w->stop(p_.shutdown_timeout);
+  if (stopped) {
+    for (ros::Subscriber* s : {&keyframe_sub_, &kf_objects_sub_, &poses_sub_, &objects_sub_, &events_sub_,
+                               &map_id_sub_}) {
+      s->shutdown();
+    }
+    report_timer_.stop();
+    status_timer_.stop();
+    autosave_timer_.stop();
+  }
+  if (!w) return;
+  if (!stopped) {
+    DQO_SHUTDOWN_LOG(ERROR, "mapping: the mapping step in progress did not end within shutdown_timeout (%.1f s): "
+                     "exiting without saving (the last autosave, %s, stays)", p_.shutdown_timeout,
+                     autosave_path_.c_str());
+    // Its thread still uses the worker, and callbacks may wait for it: both must outlive this
+    // nodelet (the process is ending).
+    new std::shared_ptr<MappingWorker>(w);  // NOLINT: deliberately never freed
+    return;
+  }
+  mapped_ += w->take_reports().size();
+  if (p_.autosave_period < 0.0) return;
+  if (mapped_.load() == mapped_at_save_.load()) {
+    DQO_SHUTDOWN_LOG(INFO, "mapping: shutdown: nothing mapped since the last autosave (%s)", autosave_path_.c_str());
+    return;
+  }
   std::string error;
+  const dqo::mapping::MappingStatus status = w->status();
   if (save_to(autosave_path_, &error)) {
-    ROS_INFO("mapping: saved the map to %s at shutdown", autosave_path_.c_str());
+    DQO_SHUTDOWN_LOG(INFO, "mapping: saved the map (%zu keyframes, %zu Gaussians) to %s at shutdown, %.1f s after it "
+                     "began%s", status.keyframes_in_map, status.gaussians, autosave_path_.c_str(),
+                     dqo::ms_since(t0) / 1000.0, step > 0.0 ? " (the mapping step in progress was cut short)" : "");
   } else {
-    ROS_ERROR("mapping: %s", error.c_str());
+    DQO_SHUTDOWN_LOG(ERROR, "mapping: shutdown autosave failed: %s", error.c_str());
   }
 }
 
@@ -178,18 +243,20 @@ bool MappingNodelet::read_params(std::string* error) {
   pnh.param("progress_period", p_.progress_period, p_.progress_period);
   pnh.param("queue_size", p_.queue_size, p_.queue_size);
   pnh.param("idle_flush", p_.idle_flush, p_.idle_flush);
+  pnh.param("shutdown_timeout", p_.shutdown_timeout, p_.shutdown_timeout);
   const std::set<std::string> known = {"map_frame",          "output_dir",       "autosave_file",
                                        "autosave_period",    "resume",           "render_period",
                                        "gaussians_period",   "gaussians_max_points", "diagnostics_period",
-                                       "progress_period",    "queue_size",       "idle_flush", "mapping"};
+                                       "progress_period",    "queue_size",       "idle_flush", "shutdown_timeout",
+                                       "mapping"};
   for (const std::string& name : dqo::ros_bridge::unknown_private_params(pnh, known)) {
     NODELET_WARN("mapping: ignoring unknown parameter %s/%s", pnh.getNamespace().c_str(), name.c_str());
   }
   if (p_.autosave_file.empty() || fs::path(p_.autosave_file).has_parent_path() || p_.render_period <= 0.0 ||
       p_.gaussians_period <= 0.0 || p_.gaussians_max_points < 1 || p_.diagnostics_period <= 0.0 ||
-      p_.progress_period <= 0.0 || p_.queue_size < 1 || p_.idle_flush <= 0.0) {
-    *error = "autosave_file must be a plain file name, the periods and idle_flush > 0, gaussians_max_points and "
-             "queue_size >= 1";
+      p_.progress_period <= 0.0 || p_.queue_size < 1 || p_.idle_flush <= 0.0 || !(p_.shutdown_timeout >= 0.0)) {
+    *error = "autosave_file must be a plain file name, the periods and idle_flush > 0, shutdown_timeout >= 0, "
+             "gaussians_max_points and queue_size >= 1";
     return false;
   }
   // ~mapping through the same strict loader as dqo_map_offline --config.
@@ -212,7 +279,7 @@ bool MappingNodelet::read_params(std::string* error) {
   return true;
 }
 
-void MappingNodelet::start_worker(bool resume) {
+bool MappingNodelet::start_worker(bool resume) {
   auto w = std::make_shared<MappingWorker>(mapper_params_);
   if (resume && fs::exists(autosave_path_)) {
     std::string error, warning;
@@ -235,7 +302,9 @@ void MappingNodelet::start_worker(bool resume) {
     }
   }
   std::lock_guard<std::mutex> lock(worker_mutex_);
+  if (shutting_down_) return false;  // a new map announced during shutdown: the old one is saved
   worker_ = std::move(w);
+  return true;
 }
 
 void MappingNodelet::onInit() {
@@ -260,7 +329,8 @@ void MappingNodelet::onInit() {
   map_id_sub_ = nh.subscribe("map_id", 1, &MappingNodelet::on_map_id, this);
   render_pub_ = mt.advertise<sensor_msgs::Image>("map_render", 1);
   render_ids_pub_ = mt.advertise<sensor_msgs::Image>("map_render_ids", 1);
-  cloud_pub_ = mt.advertise<sensor_msgs::PointCloud2>("gaussians", 1);
+  // Latched: a restarted rviz (or any late subscriber) gets the latest map at once.
+  cloud_pub_ = mt.advertise<sensor_msgs::PointCloud2>("gaussians", 1, /*latch=*/true);
   objects_pub_ = mt.advertise<dqo_map::ObjectArray>("mapped_objects", 1, /*latch=*/true);
   diag_pub_ = mt.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
   get_srv_ = mt.advertiseService("get_object", &MappingNodelet::get_object, this);
@@ -268,10 +338,11 @@ void MappingNodelet::onInit() {
   save_srv_ = mt.advertiseService("save_map", &MappingNodelet::save_map, this);
   load_srv_ = mt.advertiseService("load_map", &MappingNodelet::load_map, this);
   report_timer_ = mt.createWallTimer(ros::WallDuration(0.1), &MappingNodelet::on_reports, this);
+  status_timer_ = mt.createWallTimer(ros::WallDuration(p_.diagnostics_period), &MappingNodelet::on_status, this);
   if (p_.autosave_period > 0.0) {
     autosave_timer_ = mt.createWallTimer(ros::WallDuration(p_.autosave_period), &MappingNodelet::on_autosave, this);
   }
-  last_progress_ = last_render_ = last_cloud_ = last_diag_ = last_objects_ = ros::WallTime::now();
+  last_progress_ = last_render_ = last_cloud_ = last_objects_ = ros::WallTime::now();
   NODELET_INFO("mapping: backend %s, output folder %s, autosave %s every %.0f s, max_queue %d, max_gaussians %d",
                dqo::mapping::to_string(mapper_params_.backend), p_.output_dir.c_str(), autosave_path_.c_str(),
                p_.autosave_period, mapper_params_.max_queue, mapper_params_.max_gaussians);
@@ -308,7 +379,7 @@ void MappingNodelet::on_keyframe(const dqo_map::KeyFrame::ConstPtr& msg) {
     // waiting for a timeout that the new time line would take long to reach.
     NODELET_WARN("mapping: keyframe time jumped back %.1f s (a looping bag?): mapping the waiting keyframes now",
                  jump);
-    w->wait_until_idle(/*flush=*/true);
+    w->flush();  // in the worker's inbox before this keyframe: acts on the old time line only
   }
   ++received_;
   last_keyframe_wall_ns_ = static_cast<int64_t>(ros::WallTime::now().toNSec());
@@ -371,22 +442,24 @@ void MappingNodelet::on_map_id(const std_msgs::String::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(state_mutex_);
     previous = map_id_;
     resumed = resumed_map_id_;
-    map_id_ = msg->data;
-    resumed_map_id_.clear();
   }
   if (msg->data == previous) return;
   const bool from_other_map = previous.empty() ? (!resumed.empty() && resumed != msg->data) : true;
   if (!from_other_map) {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    map_id_ = msg->data;
+    resumed_map_id_.clear();
     NODELET_INFO("mapping: map '%s'%s", msg->data.c_str(), resumed.empty() ? "" : " (resumed)");
     return;
   }
   // The tracker started a new map: the Gaussians of the old one are in another frame. Keep them in
-  // a file of their own and start empty.
+  // a file of their own (saved under the old identity: map_id_ changes only once the new map is
+  // in place, so that neither the file nor the diagnostics mix the two) and start empty.
   const std::string old_id = previous.empty() ? resumed : previous;
   const std::string kept = (fs::path(p_.output_dir) / ("map_" + old_id + ".dqomap")).string();
   std::string error;
   const auto w = worker();
-  const size_t had = w ? w->with_mapper([](GaussianMapper& m) { return m.map_structure().size(); }) : 0;
+  const size_t had = w ? w->status().gaussians : 0;
   if (had > 0 && dqo::resolve_output_path(p_.output_dir, "map_" + old_id + ".dqomap", &error) &&
       save_to(kept, &error)) {
     NODELET_WARN("mapping: new map '%s' (was '%s'): the old map's %zu Gaussians are kept in %s; starting empty",
@@ -394,9 +467,17 @@ void MappingNodelet::on_map_id(const std_msgs::String::ConstPtr& msg) {
   } else if (had > 0) {
     NODELET_WARN("mapping: new map '%s' (was '%s'): the old map is dropped (%s); starting empty", msg->data.c_str(),
                  old_id.c_str(), error.c_str());
+  } else {
+    NODELET_INFO("mapping: new map '%s' (was '%s', empty)", msg->data.c_str(), old_id.c_str());
   }
-  start_worker(/*resume=*/false);
+  if (!start_worker(/*resume=*/false)) return;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    map_id_ = msg->data;
+    resumed_map_id_.clear();
+  }
   mapped_at_save_ = mapped_.load();
+  cloud_stale_ = true;  // the latched cloud shows the old map
 }
 
 // ---------------------------------------------------------------- timers
@@ -425,13 +506,43 @@ void MappingNodelet::on_reports(const ros::WallTimerEvent&) {
   const int64_t last_kf = last_keyframe_wall_ns_.load();
   if (last_kf > 0 && !flushed_idle_ && (static_cast<int64_t>(now.toNSec()) - last_kf) * 1e-9 >= p_.idle_flush) {
     flushed_idle_ = true;
-    const size_t waiting = w->with_mapper([](GaussianMapper& m) { return m.waiting(); });
+    const size_t waiting = w->status().waiting;
     if (waiting > 0) {
       NODELET_INFO("mapping: no keyframe for %.0f s: mapping the %zu keyframes still waiting for their objects as "
                    "background", p_.idle_flush, waiting);
       w->flush();
     }
   }
+  if ((now - last_objects_).toSec() >= 1.0 && objects_dirty_.exchange(false)) {
+    last_objects_ = now;
+    publish_mapped_objects();
+  }
+  // The render and the cloud need the map itself: taken when the mapper is free, else tried again
+  // at the next tick (the worker then leaves a turn between two steps: try_with_mapper). Never
+  // waiting for a step: a timer callback in progress holds up stopping the timer (shutdown).
+  if ((now - last_render_).toSec() >= p_.render_period && mapped_.load() != mapped_at_render_.load() &&
+      (render_pub_.getNumSubscribers() > 0 || render_ids_pub_.getNumSubscribers() > 0)) {
+    const uint64_t mapped = mapped_.load();
+    if (publish_render()) {
+      last_render_ = now;
+      mapped_at_render_ = mapped;
+    }
+  }
+  // Latched, so published also without subscribers: whoever subscribes later gets the latest.
+  if ((now - last_cloud_).toSec() >= p_.gaussians_period &&
+      (mapped_.load() != mapped_at_cloud_.load() || cloud_stale_.load())) {
+    const uint64_t mapped = mapped_.load();
+    if (publish_gaussians()) {
+      last_cloud_ = now;
+      mapped_at_cloud_ = mapped;
+      cloud_stale_ = false;
+    }
+  }
+}
+
+// Never takes the mapper's lock: counters, the worker's snapshot and the reports taken so far.
+void MappingNodelet::on_status(const ros::WallTimerEvent&) {
+  const ros::WallTime now = ros::WallTime::now();
   if ((now - last_progress_).toSec() >= p_.progress_period && mapped_.load() != mapped_at_progress_) {
     const double rate = (mapped_.load() - mapped_at_progress_) / (now - last_progress_).toSec();
     mapped_at_progress_ = mapped_.load();
@@ -448,39 +559,14 @@ void MappingNodelet::on_reports(const ros::WallTimerEvent&) {
                  last_report_.queued, static_cast<unsigned long long>(dropped_.load()),
                  objects.str().empty() ? " none yet" : objects.str().c_str());
   }
-  if ((now - last_diag_).toSec() >= p_.diagnostics_period) {
-    last_diag_ = now;
-    publish_diagnostics();
-  }
-  if ((now - last_objects_).toSec() >= 1.0 && objects_dirty_.exchange(false)) {
-    last_objects_ = now;
-    publish_mapped_objects();
-  }
-  if ((now - last_render_).toSec() >= p_.render_period && mapped_.load() != mapped_at_render_.load() &&
-      (render_pub_.getNumSubscribers() > 0 || render_ids_pub_.getNumSubscribers() > 0)) {
-    last_render_ = now;
-    mapped_at_render_ = mapped_.load();
-    publish_render();
-  }
-  if ((now - last_cloud_).toSec() >= p_.gaussians_period && mapped_.load() != mapped_at_cloud_.load() &&
-      cloud_pub_.getNumSubscribers() > 0) {
-    last_cloud_ = now;
-    mapped_at_cloud_ = mapped_.load();
-    publish_gaussians();
-  }
+  publish_diagnostics();
 }
 
 void MappingNodelet::publish_diagnostics() {
   const auto w = worker();
   if (!w) return;
-  size_t waiting = 0, ready = 0, gaussians = 0, bytes = 0, objects = 0;
-  w->with_mapper([&](GaussianMapper& m) {
-    waiting = m.waiting();
-    ready = m.ready();
-    gaussians = m.map_structure().size();
-    objects = m.list_objects().size();
-    bytes = m.map_structure().bytes_used();
-  });
+  const dqo::mapping::MappingStatus status = w->status();
+  const double step_s = w->step_seconds();
   const size_t inbox = w->inbox_size();
   double mean_ms = 0.0, max_ms = 0.0;
   {
@@ -515,16 +601,22 @@ void MappingNodelet::publish_diagnostics() {
   };
   kv("keyframes received", std::to_string(received_.load()));
   kv("keyframes mapped", std::to_string(mapped_.load()));
-  kv("keyframes waiting for objects", std::to_string(waiting));
-  kv("keyframes queued", std::to_string(ready + inbox));
+  kv("keyframes in the map", std::to_string(status.keyframes_in_map));
+  kv("keyframes waiting for objects", std::to_string(status.waiting));
+  kv("keyframes queued", std::to_string(status.ready + inbox));
   kv("keyframes dropped", std::to_string(dropped_.load()));
   kv("messages refused", std::to_string(refused_.load() + errors_.load()));
   kv("ms per update (mean of last 50)", num(mean_ms));
   kv("ms per update (max of last 50)", num(max_ms));
-  kv("gaussians", std::to_string(gaussians));
-  kv("objects", std::to_string(objects));
-  kv("map memory (MB)", num(bytes / 1e6));
+  kv("mapping step in progress (s)", num(step_s));  // 0: idle
+  kv("gaussians", std::to_string(status.gaussians));
+  kv("objects", std::to_string(status.objects.size()));
+  kv("map memory (MB)", num(status.bytes / 1e6));
   kv("peak resident memory (MB)", num(dqo::system::peak_memory_mb()));
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    kv("map id", map_id_.empty() ? resumed_map_id_ : map_id_);
+  }
   diagnostic_msgs::DiagnosticArray a;
   a.header.stamp = ros::Time::now();
   a.status.push_back(s);
@@ -536,43 +628,46 @@ void MappingNodelet::publish_mapped_objects() {
   if (!w) return;
   dqo_map::ObjectArray a;
   a.header = header();
-  w->with_mapper([&](GaussianMapper& m) {
-    for (const auto& o : m.list_objects()) {
-      if (o.object.id != 0) a.objects.push_back(dqo::ros_bridge::to_object_msg(o));
-    }
-  });
+  for (const auto& o : w->status().objects) {
+    if (o.object.id != 0) a.objects.push_back(dqo::ros_bridge::to_object_msg(o));
+  }
   objects_pub_.publish(a);
 }
 
-void MappingNodelet::publish_render() {
+bool MappingNodelet::publish_render() {
   const auto w = worker();
-  if (!w) return;
+  if (!w) return false;
   dqo::gs::RenderOutput r;
   double stamp = 0.0;
-  const bool ok = w->with_mapper([&](GaussianMapper& m) {
-    if (m.keyframe_poses().empty()) return false;
+  bool have = false;
+  const bool ran = w->try_with_mapper([&](GaussianMapper& m) {
+    if (m.keyframe_poses().empty()) return;
     const dqo::mapping::KeyframePose& k = m.keyframe_poses().back();
     stamp = k.stamp;
     m.render(k.camera, k.T_wc, &r);
-    return true;
+    have = true;
   });
-  if (!ok) return;
+  if (!ran) return false;
+  if (!have) return true;
   std_msgs::Header h = header();
   h.stamp = ros::Time(stamp);
   h.frame_id = "";  // an image of the map, seen from the keyframe's camera
   render_pub_.publish(dqo::ros_bridge::to_rgb8_msg(dqo::system::render_colour_image(r), h));
   render_ids_pub_.publish(dqo::ros_bridge::to_rgb8_msg(dqo::system::render_ids_image(r), h));
+  return true;
 }
 
-void MappingNodelet::publish_gaussians() {
+bool MappingNodelet::publish_gaussians() {
   const auto w = worker();
-  if (!w) return;
-  sensor_msgs::PointCloud2 cloud = w->with_mapper([&](GaussianMapper& m) {
+  if (!w) return false;
+  sensor_msgs::PointCloud2 cloud;
+  const bool ran = w->try_with_mapper([&](GaussianMapper& m) {
     const size_t n = m.map().size();
     const size_t stride = (n + p_.gaussians_max_points - 1) / p_.gaussians_max_points;
-    return dqo::ros_bridge::to_gaussian_cloud(m.map(), header(), std::max<size_t>(1, stride));
+    cloud = dqo::ros_bridge::to_gaussian_cloud(m.map(), header(), std::max<size_t>(1, stride));
   });
-  cloud_pub_.publish(cloud);
+  if (ran) cloud_pub_.publish(cloud);
+  return ran;
 }
 
 void MappingNodelet::on_autosave(const ros::WallTimerEvent&) {
@@ -699,6 +794,7 @@ bool MappingNodelet::load_map(dqo_map::LoadMap::Request& req, dqo_map::LoadMap::
     next_object_id_ = std::max(next_object_id_, next);
   }
   objects_dirty_ = true;
+  cloud_stale_ = true;
   res.success = true;
   res.path = *path;
   res.message = "loaded " + std::to_string(n) + " Gaussians" + (warning.empty() ? "" : "; " + warning);

@@ -54,6 +54,7 @@
 
 #include "camera_tf.h"
 #include "conversions.h"
+#include "dqo_map/tracking/map_identity.h"
 #include "dqo_map/tracking/map_levelling.h"
 #include "dqo_map/tracking/tracking_session.h"
 #include "dqo_map/tracking/undistortion.h"
@@ -123,6 +124,7 @@ class TrackingNode {
   ros::NodeHandle nh_, pnh_;
   NodeParams p_;
   std::unique_ptr<tracking::TrackingSession> session_;
+  std::optional<tracking::MapIdentity> map_identity_;  // published on map_id (latched)
 
   message_filters::Subscriber<sensor_msgs::Image> rgb_sub_, depth_sub_;
   message_filters::Subscriber<sensor_msgs::CameraInfo> info_sub_;
@@ -251,19 +253,22 @@ TrackingNode::TrackingNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   path_.header.frame_id = p_.tf.map_frame;
   // The map's identity: objects made in one map mean nothing in another. A tracker run makes a map
   // of its own (its origin is where this run began); a map read from tf is whoever publishes it.
+  // A re-anchored tracker (time going back, another camera) makes a new map: tracking::MapIdentity.
   std_msgs::String map_id;
   if (p_.pose_source == "tf") {
-    map_id.data = "tf:" + p_.tf.map_frame;
+    map_identity_.emplace("tf:" + p_.tf.map_frame, /*external=*/true);
     T_map_tracker_ = SE3::identity();
   } else {
     char host[64] = {0};
     gethostname(host, sizeof(host) - 1);
-    map_id.data = "tracker:" + p_.tf.map_frame + ":" + std::string(host) + ":" + std::to_string(getpid()) + ":" +
-                  std::to_string(ros::WallTime::now().toNSec());
+    map_identity_.emplace("tracker:" + p_.tf.map_frame + ":" + std::string(host) + ":" + std::to_string(getpid()) +
+                              ":" + std::to_string(ros::WallTime::now().toNSec()),
+                          /*external=*/false);
     if (level_ == tracking::MapLevel::kAuto || level_ == tracking::MapLevel::kImu) {
       imu_sub_ = nh_.subscribe("imu", 400, &TrackingNode::on_imu, this);
     }
   }
+  map_id.data = map_identity_->id();
   map_id_pub_.publish(map_id);
   if (config->tracker.objects.enabled && p_.pose_source == "tracker") {
     objects_sub_ = nh_.subscribe("objects", 1, &TrackingNode::on_objects, this);
@@ -564,6 +569,15 @@ void TrackingNode::track_frame(const ImageConstPtr& rgb_msg, const ImageConstPtr
 void TrackingNode::handle_result(const tracking::SessionResult& r, const std_msgs::Header& image_header,
                                  const std::string& camera_frame) {
   const ros::Time stamp = image_header.stamp;
+  // Before this frame's keyframe goes out: mapping and association see the new map first.
+  if (map_identity_->update(r)) {
+    std_msgs::String id;
+    id.data = map_identity_->id();
+    map_id_pub_.publish(id);
+    ROS_WARN("tracking: a new map '%s' (%s): the old map's poses cannot be related to the new ones; mapping and "
+             "association keep it apart and start empty", id.data.c_str(),
+             r.reset ? "time went back" : "the camera changed");
+  }
   if (r.reset) {
     ROS_WARN("tracking: time went back by %.3f s (a looping bag?): tracker and keyframe selection "
              "restarted, path cleared", r.time_jump);
@@ -712,6 +726,7 @@ void TrackingNode::publish_diagnostics(const tracking::SessionResult& r, const r
   add("features_dense_disagreement_m", std::to_string(q.disagreement_m));
   add("features_dense_disagreement_deg", std::to_string(q.disagreement_deg));
   add("milliseconds", std::to_string(r.track.milliseconds));
+  add("map_id", map_identity_->id());
   if (objects_sub_) {
     add("object_landmarks", std::to_string(object_landmarks_));
     add("object_sightings", std::to_string(object_sightings_));

@@ -137,5 +137,87 @@ TEST(MappingWorker, StopsPromptlyWithInputsPending) {
   EXPECT_LT(seconds, 5.0);
 }
 
+// A step that would run for minutes (many iterations): stop() cuts it short at the trainer's next
+// iteration, the keyframe counts as mapped (its Gaussians added, fewer iterations), the queued one
+// is not, and the mapper is free at once for the last save. Meanwhile the status never waits.
+TEST(MappingWorker, StopCutsALongStepShortAndStatusNeverWaits) {
+  GaussianMapperParams p = params();
+  p.trainer.iterations = 1000000;
+  MappingWorker worker(p);
+  worker.set_objects(testing::truth(0).objects);
+  for (KeyframeId id = 1; id <= 2; ++id) {
+    worker.add_keyframe(keyframe(id));
+    worker.add_keyframe_objects(objects(id));
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  while (worker.step_seconds() < 0.3) {
+    ASSERT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "no step started";
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const auto t1 = std::chrono::steady_clock::now();
+  const MappingStatus during = worker.status();
+  EXPECT_LT(std::chrono::steady_clock::now() - t1, std::chrono::milliseconds(100)) << "status() waited";
+  EXPECT_EQ(during.keyframes_in_map, 0u);
+
+  const auto t2 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(worker.stop(10.0));
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t2).count(), 5.0);
+  EXPECT_EQ(worker.step_seconds(), 0.0);
+  const auto reports = worker.take_reports();
+  ASSERT_EQ(reports.size(), 1u) << "the step cut short counts, the queued keyframe is not mapped";
+  EXPECT_TRUE(reports[0].trainer.abandoned);
+  EXPECT_LT(reports[0].trainer.iterations, p.trainer.iterations);
+  EXPECT_GT(reports[0].num_gaussians, 0u);
+  const size_t in_map = worker.with_mapper([](GaussianMapper& m) { return m.keyframes_mapped(); });
+  EXPECT_EQ(in_map, 1u);
+  EXPECT_EQ(worker.status().keyframes_in_map, 1u);
+  EXPECT_EQ(worker.status().gaussians, reports[0].num_gaussians);
+  EXPECT_TRUE(worker.stop(0.0)) << "stopping twice is harmless";
+}
+
+TEST(MappingWorker, TryWithMapperSkipsWhileAStepRuns) {
+  GaussianMapperParams p = params();
+  p.trainer.iterations = 1000000;
+  MappingWorker worker(p);
+  int ran = 0;
+  EXPECT_TRUE(worker.try_with_mapper([&](GaussianMapper&) { ++ran; })) << "idle: runs";
+  worker.add_keyframe(keyframe(1));
+  worker.add_keyframe_objects(objects(1));
+  const auto t0 = std::chrono::steady_clock::now();
+  while (worker.step_seconds() < 0.1) {
+    ASSERT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "no step started";
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_FALSE(worker.try_with_mapper([&](GaussianMapper&) { ++ran; })) << "busy: skipped, not waited";
+  EXPECT_EQ(ran, 1);
+}
+
+// Steps back to back: a try that found the mapper busy gets a turn between two steps, long before
+// the queue is mapped (else a render or a cloud would wait for the end of the input).
+TEST(MappingWorker, TryWithMapperGetsATurnBetweenStepsBackToBack) {
+  GaussianMapperParams p = params();
+  p.trainer.iterations = 100;
+  MappingWorker worker(p);
+  worker.set_objects(testing::truth(0).objects);
+  for (KeyframeId id = 1; id <= 5; ++id) {
+    worker.add_keyframe(keyframe(id));
+    worker.add_keyframe_objects(objects(id));
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  while (worker.step_seconds() == 0.0) {
+    ASSERT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "no step started";
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  size_t mapped_then = 0;
+  int tries = 0;
+  while (!worker.try_with_mapper([&](GaussianMapper& m) { mapped_then = m.keyframes_mapped(); })) {
+    ++tries;
+    ASSERT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(60)) << "never a turn";
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the nodelet's timer tries every 100 ms
+  }
+  EXPECT_GE(tries, 1) << "the first try came during a step";
+  EXPECT_LE(mapped_then, 2u) << "a turn only after " << mapped_then << " of 5 steps";
+}  // the destructor cuts the rest short
+
 }  // namespace
 }  // namespace dqo::mapping

@@ -19,6 +19,7 @@
 // engine, where one is given: cuda/train/) and the review's per-Gaussian loop. Not
 // thread-safe: one caller at a time (the mapping node's worker).
 
+#include <atomic>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -64,6 +65,7 @@ struct KeyframeReport {
   size_t num_gaussians = 0, num_unstable = 0;
   size_t missing_pixels = 0, error_pixels = 0;
   int iterations = 0;
+  bool abandoned = false;  // the stop flag ended the training early (iterations < Params::iterations)
   double loss_first = 0.0, loss_last = 0.0;  // total loss of the first and last iteration
   std::vector<double> losses;                 // of every iteration
   double seconds = 0.0;
@@ -202,6 +204,12 @@ class GaussianTrainer {
   // More iterations over the window (idle time); returns the loss of the last one.
   double optimise(int iterations);
 
+  // A flag another thread sets to end the training of the step in progress early (a shutdown
+  // that must not wait for a long step): checked between two host iterations, so the map and the
+  // optimiser stay consistent and the step still adds and prunes. An engine's batch (the GPU's,
+  // milliseconds) runs to its end. Null: never. The flag must outlive the trainer's use of it.
+  void set_stop_flag(const std::atomic<bool>* stop) { stop_ = stop; }
+
   // A stored keyframe's corrected pose (after bundle adjustment). False when not stored.
   bool set_keyframe_pose(uint32_t id, const SE3& T_wc);
 
@@ -294,6 +302,7 @@ class GaussianTrainer {
   void sync_engine();
 
   Params params_;
+  const std::atomic<bool>* stop_ = nullptr;  // see set_stop_flag
   std::unique_ptr<Rasteriser> rasteriser_;
   std::unique_ptr<TrainingEngine> engine_;
   uint64_t next_key_ = 1;

@@ -21,6 +21,7 @@
 // Not thread-safe: one owner calls it (the nodelet's worker, with its own lock, or the offline
 // runner).
 
+#include <atomic>
 #include <cstdint>
 #include <deque>
 #include <map>
@@ -123,6 +124,9 @@ class GaussianMapper {
   size_t ready() const { return ready_.size(); }
   size_t waiting() const { return waiting_.size(); }
   size_t dropped() const { return dropped_; }
+  // A flag another thread sets to cut the training of the step in progress short (a shutdown):
+  // GaussianTrainer::set_stop_flag. The keyframe still counts as mapped, with fewer iterations.
+  void set_stop_flag(const std::atomic<bool>* stop) { trainer_->set_stop_flag(stop); }
 
   // Queries.
   std::vector<ObjectSummary> list_objects() const;  // by ID; objects reported or with Gaussians
