@@ -91,6 +91,8 @@ class MappingNodelet : public nodelet::Nodelet {
     // Seconds the shutdown waits for the mapping step in progress (cut short at its next training
     // iteration) before it saves; see config/mapping_node.yaml.
     double shutdown_timeout = 5.0;
+    // Wall seconds from the start without any keyframe before the status turns WARN (<= 0: never).
+    double input_warn = 30.0;
   };
 
   void onInit() override;
@@ -155,6 +157,7 @@ class MappingNodelet : public nodelet::Nodelet {
   std::atomic<bool> objects_dirty_{false};
   ros::WallTime last_progress_, last_render_, last_cloud_, last_objects_;
   std::atomic<int64_t> last_keyframe_wall_ns_{0};  // wall time of the newest keyframe
+  const ros::WallTime started_ = ros::WallTime::now();
   std::atomic<bool> flushed_idle_{false};          // flushed since that keyframe
   uint64_t mapped_at_progress_ = 0;
 
@@ -244,11 +247,12 @@ bool MappingNodelet::read_params(std::string* error) {
   pnh.param("queue_size", p_.queue_size, p_.queue_size);
   pnh.param("idle_flush", p_.idle_flush, p_.idle_flush);
   pnh.param("shutdown_timeout", p_.shutdown_timeout, p_.shutdown_timeout);
+  pnh.param("input_warn", p_.input_warn, p_.input_warn);
   const std::set<std::string> known = {"map_frame",          "output_dir",       "autosave_file",
                                        "autosave_period",    "resume",           "render_period",
                                        "gaussians_period",   "gaussians_max_points", "diagnostics_period",
                                        "progress_period",    "queue_size",       "idle_flush", "shutdown_timeout",
-                                       "mapping"};
+                                       "input_warn",         "mapping"};
   for (const std::string& name : dqo::ros_bridge::unknown_private_params(pnh, known)) {
     NODELET_WARN("mapping: ignoring unknown parameter %s/%s", pnh.getNamespace().c_str(), name.c_str());
   }
@@ -586,7 +590,18 @@ void MappingNodelet::publish_diagnostics() {
     s.level = diagnostic_msgs::DiagnosticStatus::WARN;
     s.message = "keyframes dropped: mapping is slower than the input (max_queue)";
   } else if (received_.load() == 0) {
+    // No keyframe ever: tracking is not running, not initialised (no camera?) or publishes elsewhere.
+    const double waited = (ros::WallTime::now() - started_).toSec();
     s.message = "waiting for keyframes";
+    if (p_.input_warn > 0.0 && waited >= p_.input_warn) {
+      s.level = diagnostic_msgs::DiagnosticStatus::WARN;
+      std::ostringstream m;
+      m << "no keyframes on " << keyframe_sub_.getTopic() << " for " << static_cast<int>(waited)
+        << " s: is tracking running and initialised?";
+      s.message = m.str();
+    }
+  } else if (status.ready + inbox == 0 && status.waiting == 0 && step_s == 0.0) {
+    s.message = "idle: every keyframe received is mapped";  // caught up (the end of a bag, a still camera)
   }
   auto kv = [&](const std::string& key, const std::string& value) {
     diagnostic_msgs::KeyValue k;

@@ -3,6 +3,7 @@
 
 - tracking, no images at all: WARN "no images for N s (none yet) on <the three topics>";
 - association, no keyframes: WARN "no keyframes on <topic> for N s (none yet ...)";
+- mapping, no keyframes: WARN "no keyframes on <topic> for N s: is tracking running ...";
 - association, keyframes but no detections: WARN "keyframes arrive but no detections on ..." —
   one keyframe message (empty images: the node skips it, but it counts as arrived).
 """
@@ -25,13 +26,17 @@ class InputWarnings(unittest.TestCase):
             self.latest[s.name] = s
 
     def wait_for(self, name, predicate, timeout=20.0):
+        """The latest status whose name starts with `name` once it satisfies predicate (or the last seen)."""
         deadline = time.time() + timeout
+        found = None
         while time.time() < deadline and not rospy.is_shutdown():
-            s = self.latest.get(name)
-            if s is not None and predicate(s):
-                return s
+            for key, s in list(self.latest.items()):
+                if key.startswith(name):
+                    found = s
+                    if predicate(s):
+                        return s
             time.sleep(0.1)
-        return self.latest.get(name)
+        return found
 
     def test_warnings(self):
         tracking = self.wait_for("dqo_map: tracking", lambda s: "no images" in s.message)
@@ -45,6 +50,11 @@ class InputWarnings(unittest.TestCase):
         self.assertIsNotNone(association, "association published no diagnostics")
         self.assertEqual(association.level, DiagnosticStatus.WARN, association.message)
         self.assertIn("/dqo_map/keyframes", association.message)
+
+        mapping = self.wait_for("dqo_map: mapping", lambda s: "no keyframes" in s.message, timeout=40.0)
+        self.assertIsNotNone(mapping, "mapping published no diagnostics")
+        self.assertEqual(mapping.level, DiagnosticStatus.WARN, mapping.message)
+        self.assertIn("/dqo_map/keyframes", mapping.message)
 
         # Keyframes that come without detections: a different warning, naming the detections topic.
         pub = rospy.Publisher("/dqo_map/keyframes", KeyFrame, queue_size=10)
