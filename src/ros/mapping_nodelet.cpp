@@ -331,8 +331,9 @@ void MappingNodelet::onInit() {
   objects_sub_ = nh.subscribe("objects", 10, &MappingNodelet::on_objects, this);
   events_sub_ = nh.subscribe("object_events", 1000, &MappingNodelet::on_event, this);
   map_id_sub_ = nh.subscribe("map_id", 1, &MappingNodelet::on_map_id, this);
-  render_pub_ = mt.advertise<sensor_msgs::Image>("map_render", 1);
-  render_ids_pub_ = mt.advertise<sensor_msgs::Image>("map_render_ids", 1);
+  // Latched like the cloud: a restarted rviz shows the last render at once, not "No Image".
+  render_pub_ = mt.advertise<sensor_msgs::Image>("map_render", 1, /*latch=*/true);
+  render_ids_pub_ = mt.advertise<sensor_msgs::Image>("map_render_ids", 1, /*latch=*/true);
   // Latched: a restarted rviz (or any late subscriber) gets the latest map at once.
   cloud_pub_ = mt.advertise<sensor_msgs::PointCloud2>("gaussians", 1, /*latch=*/true);
   objects_pub_ = mt.advertise<dqo_map::ObjectArray>("mapped_objects", 1, /*latch=*/true);

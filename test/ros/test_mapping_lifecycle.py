@@ -5,7 +5,8 @@ starts, as launch/mapping.launch does, so that it can send the manager SIGINT an
 
 One run, in order (each step needs the one before):
   1. a small keyframe is mapped (a step of a fraction of a second);
-  2. the `gaussians` cloud is latched: a subscriber that connects after it went out gets it;
+  2. the `gaussians` cloud and the `map_render` are latched: a subscriber that connects after they
+     went out gets them;
   3. a large keyframe starts a step of minutes (many iterations on 640x480; CPU, one thread):
      while it runs, /diagnostics of the nodelet come at their configured rate, and say so;
   4. SIGINT to the manager during that step: it exits cleanly within shutdown_timeout and a few
@@ -127,6 +128,7 @@ class TestMappingLifecycle(unittest.TestCase):
             'autosave_period': 0.0,          # only at shutdown: the file then comes from it
             'diagnostics_period': DIAG_PERIOD,
             'gaussians_period': 0.5,
+            'render_period': 0.5,
             'shutdown_timeout': SHUTDOWN_TIMEOUT,
             'idle_flush': 60.0,
             # One CPU thread (the test machine has two cores) and enough iterations that a
@@ -203,6 +205,24 @@ class TestMappingLifecycle(unittest.TestCase):
         sub.unregister()
         self.assertEqual(len(clouds), 1, 'a late subscriber to gaussians got %d clouds' % len(clouds))
         self.assertGreater(clouds[0].width, 0)
+
+        # 2b. Latched render: a subscriber makes the nodelet render the map; one that connects after
+        # it left (a restarted rviz) gets that render at once instead of "No Image".
+        renders = []
+        sub = rospy.Subscriber(NS + '/map_render', Image, renders.append)
+        deadline = time.time() + 10.0
+        while not renders and time.time() < deadline:
+            time.sleep(0.05)
+        sub.unregister()
+        self.assertTrue(renders, 'no map_render within 10 s of subscribing')
+        late = []
+        sub = rospy.Subscriber(NS + '/map_render', Image, late.append)
+        deadline = time.time() + 3.0
+        while not late and time.time() < deadline:
+            time.sleep(0.05)
+        sub.unregister()
+        self.assertTrue(late, 'a late subscriber to map_render got nothing')
+        self.assertEqual((late[0].width, late[0].height), (renders[-1].width, renders[-1].height))
 
         # 3. A long step: diagnostics keep their rate while it runs.
         self.send(keyframe(2, 1001.0, 640, 480))
