@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
@@ -211,6 +212,34 @@ inline int render_tabletop_bag(const std::filesystem::path& dir, int frames, int
                           " 2>&1";
   return std::system(cmd.c_str());
 }
+
+// A test suite over one tabletop bag, rendered once for all its tests (render_tabletop_bag) and
+// read back in each test's SetUp (load_bag: ASSERT_NO_FATAL_FAILURE(load_bag())). CRTP: the suite
+// gives kDirPrefix, kFrames and kEvery (every kEvery-th of the scene's frames); each suite then has
+// its own folder and bag.
+template <typename Suite>
+class RenderedBagTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = make_test_dir(Suite::kDirPrefix);
+    make_scene_rc_ = dir_.empty() ? -1 : render_tabletop_bag(dir_, Suite::kFrames, Suite::kEvery, "");
+  }
+  static void TearDownTestSuite() {
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+  void load_bag() {
+    ASSERT_EQ(make_scene_rc_, 0) << "dqo_make_scene failed; see " << (dir_ / "make_scene.log");
+    captures_ = read_captures((dir_ / "tabletop.bag").string(), &tf_static_);
+    ASSERT_EQ(captures_.size(), static_cast<size_t>(Suite::kFrames));
+    ASSERT_FALSE(tf_static_.transforms.empty());
+  }
+
+  static inline std::filesystem::path dir_;
+  static inline int make_scene_rc_ = -1;
+  std::vector<Capture> captures_;
+  tf2_msgs::TFMessage tf_static_;
+};
 #endif
 
 // /clock, for nodes running on sim time (use_sim_time in the .test files).

@@ -106,22 +106,15 @@ struct Step {
   Phase phase = Phase::kGood;
 };
 
-class TrackingFaultsTest : public ::testing::Test {
- protected:
+class TrackingFaultsTest : public dqo::ros_test::RenderedBagTest<TrackingFaultsTest> {
+ public:
+  static constexpr const char* kDirPrefix = "dqo_tracking_faults_";
   static constexpr int kFrames = 63;
-  static void SetUpTestSuite() {
-    dir_ = dqo::ros_test::make_test_dir("dqo_tracking_faults_");
-    make_scene_rc_ = dir_.empty() ? -1 : dqo::ros_test::render_tabletop_bag(dir_, kFrames, 3, "");
-  }
-  static void TearDownTestSuite() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
+  static constexpr int kEvery = 3;
 
+ protected:
   void SetUp() override {
-    ASSERT_EQ(make_scene_rc_, 0) << "dqo_make_scene failed; see " << (dir_ / "make_scene.log");
-    captures_ = dqo::ros_test::read_captures((dir_ / "tabletop.bag").string(), &tf_static_);
-    ASSERT_EQ(captures_.size(), static_cast<size_t>(kFrames));
+    ASSERT_NO_FATAL_FAILURE(load_bag());
     for (const auto& t : tf_static_.transforms) {
       if (t.child_frame_id == "rgb_camera_link") T_base_cam_ = to_se3(t.transform);
     }
@@ -209,10 +202,6 @@ class TrackingFaultsTest : public ::testing::Test {
     return it->second;
   }
 
-  static fs::path dir_;
-  static int make_scene_rc_;
-  std::vector<Capture> captures_;
-  tf2_msgs::TFMessage tf_static_;
   dqo::SE3 T_base_cam_;
   std::vector<dqo::SE3> gt_;  // ground truth camera poses, by bag frame
   Recorder rec_;
@@ -221,8 +210,6 @@ class TrackingFaultsTest : public ::testing::Test {
   dqo::ros_test::CapturePublishers pub_;
 };
 
-fs::path TrackingFaultsTest::dir_;
-int TrackingFaultsTest::make_scene_rc_ = -1;
 
 TEST_F(TrackingFaultsTest, BadInputIsReportedAndRecovered) {
   const std::vector<Step> steps = script();

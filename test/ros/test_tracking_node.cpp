@@ -112,23 +112,15 @@ struct Recorder {
   bool logged(const std::string& needle) const { return log.logged(needle); }
 };
 
-class TrackingNodeTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    // One bag for all tests: rendered once.
-    dir_ = dqo::ros_test::make_test_dir("dqo_tracking_test_");
-    make_scene_rc_ = dir_.empty() ? -1 : dqo::ros_test::render_tabletop_bag(dir_, 40, 3, "");
-  }
-  static void TearDownTestSuite() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
+class TrackingNodeTest : public dqo::ros_test::RenderedBagTest<TrackingNodeTest> {
+ public:
+  static constexpr const char* kDirPrefix = "dqo_tracking_test_";
+  static constexpr int kFrames = 40;
+  static constexpr int kEvery = 3;
 
+ protected:
   void SetUp() override {
-    ASSERT_EQ(make_scene_rc_, 0) << "dqo_make_scene failed; see " << (dir_ / "make_scene.log");
-    captures_ = dqo::ros_test::read_captures((dir_ / "tabletop.bag").string(), &tf_static_);
-    ASSERT_EQ(captures_.size(), 40u);
-    ASSERT_FALSE(tf_static_.transforms.empty());
+    ASSERT_NO_FATAL_FAILURE(load_bag());
     // Roll camera_base about the colour camera's optical axis (the camera's own pose, the ground
     // truth, stays): the body frame the map is anchored at is then pitched and rolled.
     for (auto& t : tf_static_.transforms) {
@@ -208,12 +200,8 @@ class TrackingNodeTest : public ::testing::Test {
   }
 
   static constexpr double kRollDeg = 15.0;
-  static fs::path dir_;
-  static int make_scene_rc_;
   bool rolled_ = false;
   dqo::SE3 T_base_cam_;  // the (rolled) static camera_base -> rgb_camera_link
-  std::vector<Capture> captures_;
-  tf2_msgs::TFMessage tf_static_;
   std::map<long, dqo::SE3> gt_;  // ground truth by bag stamp in microseconds
   Recorder rec_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
@@ -222,8 +210,6 @@ class TrackingNodeTest : public ::testing::Test {
   ros::Publisher objects_pub_, kf_objects_pub_;  // as association_node publishes them
 };
 
-fs::path TrackingNodeTest::dir_;
-int TrackingNodeTest::make_scene_rc_ = -1;
 
 TEST_F(TrackingNodeTest, KeyframesTfAndBadInput) {
   // ---- the bag, in order (each frame waits for its tf; 90 s for the whole bag)

@@ -112,22 +112,15 @@ struct Recorder {
   }
 };
 
-class TrackingReanchorTest : public ::testing::Test {
- protected:
+class TrackingReanchorTest : public dqo::ros_test::RenderedBagTest<TrackingReanchorTest> {
+ public:
+  static constexpr const char* kDirPrefix = "dqo_tracking_reanchor_";
   static constexpr int kFrames = 63;
-  static void SetUpTestSuite() {
-    dir_ = dqo::ros_test::make_test_dir("dqo_tracking_reanchor_");
-    make_scene_rc_ = dir_.empty() ? -1 : dqo::ros_test::render_tabletop_bag(dir_, kFrames, 3, "");
-  }
-  static void TearDownTestSuite() {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
+  static constexpr int kEvery = 3;
 
+ protected:
   void SetUp() override {
-    ASSERT_EQ(make_scene_rc_, 0) << "dqo_make_scene failed; see " << (dir_ / "make_scene.log");
-    captures_ = dqo::ros_test::read_captures((dir_ / "tabletop.bag").string(), &tf_static_);
-    ASSERT_EQ(captures_.size(), static_cast<size_t>(kFrames));
+    ASSERT_NO_FATAL_FAILURE(load_bag());
     std::string error;
     const auto gt = dqo::read_tum_trajectory((dir_ / "data" / "groundtruth.txt").string(), &error);
     ASSERT_TRUE(gt) << error;
@@ -164,10 +157,6 @@ class TrackingReanchorTest : public ::testing::Test {
     wait_for([&] { return rec_.saw_tf_at(t); }, wait);
   }
 
-  static fs::path dir_;
-  static int make_scene_rc_;
-  std::vector<Capture> captures_;
-  tf2_msgs::TFMessage tf_static_;
   std::vector<dqo::SE3> gt_;
   Recorder rec_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
@@ -175,8 +164,6 @@ class TrackingReanchorTest : public ::testing::Test {
   dqo::ros_test::CapturePublishers pub_;
 };
 
-fs::path TrackingReanchorTest::dir_;
-int TrackingReanchorTest::make_scene_rc_ = -1;
 
 TEST_F(TrackingReanchorTest, AJumpIsLostAndAReplayStartsANewMap) {
   const std::string map_a = rec_.last_map_id();
