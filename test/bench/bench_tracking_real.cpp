@@ -134,14 +134,14 @@ std::optional<Sequence> load_scene(const std::string& path, int frames, std::str
 }
 
 Sequence every_kth(const Sequence& s, int k) {
-  Sequence out{s.name + (k > 1 ? " every " + std::to_string(k) : ""), s.camera, {}};
+  Sequence out{s.name + (k > 1 ? " every " + std::to_string(k) : ""), s.camera, s.rolling_shutter_s, {}};
   for (size_t i = 0; i < s.frames.size(); i += static_cast<size_t>(k)) out.frames.push_back(s.frames[i]);
   return out;
 }
 
 // The fault starts a third of the way in.
 Sequence inject(const Sequence& s, const std::string& fault, Fault* f) {
-  Sequence out{s.name + ", " + fault, s.camera, {}};
+  Sequence out{s.name + ", " + fault, s.camera, s.rolling_shutter_s, {}};
   const double t0 = s.frames.front().t;
   const double start = t0 + (s.frames.back().t - t0) / 3.0;
   f->name = fault;
