@@ -221,9 +221,9 @@ struct ObjectLandmarkParams {
 // the other over readout_s (top to bottom), the stamp taken as the middle row's instant. Each
 // frame's keypoints are moved to where a global shutter at the stamp would have seen them, the
 // camera's motion taken from the motion model (the last step's constant velocity). 0: a global
-// shutter (the simulator; the default). TUM fr1's Kinect v1: 0.02 s (fitted on fr1/xyz and
-// fr1/desk: 0.01 / 0.02 / 0.03 s gave 0.63 / 0.50 / 0.57 cm on xyz; BENCHMARKS.md, issue 25,
-// session 16), which config/cameras/tum_fr1.yaml gives as the camera's rolling_shutter_s.
+// shutter (the simulator; the default). TUM fr1's Kinect v1: 0.02 s (a sweep of 0.01-0.04 s on
+// fr1/xyz and fr1/desk, best at 0.02-0.025; BENCHMARKS.md, issue 25, session 16), which
+// config/cameras/tum_fr1.yaml gives as the camera's rolling_shutter_s.
 struct RollingShutterParams {
   double readout_s = 0.0;
   // The velocity of a step longer than this (sparse frames, a gap) says too little about the
