@@ -81,7 +81,8 @@ bool read_camera_yaml(const std::string& path, bool depth_scale_required, Pinhol
   CameraDistortion lens;
   YAML::Mark lens_mark;
   const char* expected = distortion != nullptr
-                             ? "width, height, fx, fy, cx, cy, depth_scale, distortion_model, distortion"
+                             ? "width, height, fx, fy, cx, cy, depth_scale, distortion_model, distortion, "
+                               "rolling_shutter_s"
                              : "width, height, fx, fy, cx, cy, depth_scale";
   try {
     for (auto it = root.begin(); it != root.end(); ++it) {
@@ -120,6 +121,12 @@ bool read_camera_yaml(const std::string& path, bool depth_scale_required, Pinhol
           lens.coefficients.push_back(c);
         }
         if (!seen.count("distortion_model")) lens_mark = value.Mark();
+      } else if (distortion != nullptr && name == "rolling_shutter_s") {
+        ok = number_of(path, key, value, &lens.rolling_shutter_s, error);
+        if (ok && !(lens.rolling_shutter_s >= 0.0 && lens.rolling_shutter_s <= 1.0)) {
+          return fail(error, at_mark(path, value.Mark(),
+                                     "'rolling_shutter_s' must lie in [0, 1] seconds"));
+        }
       } else {
         return fail(error, at_mark(path, key.Mark(),
                                    "unknown key '" + name + "' (expected " + expected + ")"));

@@ -2,7 +2,8 @@
 // Private to io/: the intrinsics files of the dataset formats.
 //   camera.yaml (own format and TUM): width, height, fx, fy, cx, cy, depth_scale (a flat map), and
 //   optionally the lens distortion of the stored images: distortion_model (plumb_bob or
-//   rational_polynomial) with distortion: [k1, k2, p1, p2, k3(, k4, k5, k6)].
+//   rational_polynomial) with distortion: [k1, k2, p1, p2, k3(, k4, k5, k6)], and the colour
+//   sensor's rolling_shutter_s (the readout of its rows, top to bottom; absent or 0: global shutter).
 //   cam_params.json (Replica / NICE-SLAM): {"camera": {"w", "h", "fx", "fy", "cx", "cy", "scale"}}
 // read through yaml-cpp (JSON is YAML). Numbers are parsed from their text exactly.
 
@@ -19,9 +20,11 @@ namespace io_detail {
 struct CameraDistortion {
   std::string model;           // "" when the file gives none
   std::vector<double> coefficients;
+  double rolling_shutter_s = 0.0;  // read with the lens: what else departs from a pinhole snapshot
 };
 
 // `distortion` may be null: the keys are then refused (a format whose images are pinhole).
+// rolling_shutter_s must lie in [0, 1] seconds.
 // A model without coefficients, coefficients without a model, an unknown model or a coefficient
 // count it does not take (plumb_bob 5, rational_polynomial 8; fewer are padded with zeros, as
 // OpenCV does) are errors naming the file and line.

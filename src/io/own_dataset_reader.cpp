@@ -56,6 +56,7 @@ class OwnDatasetReader : public io_detail::BasicDatasetReader {
     }
     info_.distortion_model = lens.model;
     info_.distortion = lens.coefficients;
+    info_.rolling_shutter_s = lens.rolling_shutter_s;
     if (!io_detail::read_classes_file(dir + "/classes.txt", &info_.class_names, error)) return false;
     auto poses = read_tum_trajectory(dir + "/groundtruth.txt", error);
     if (!poses) return false;

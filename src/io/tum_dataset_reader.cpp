@@ -87,6 +87,7 @@ class TumDatasetReader : public io_detail::BasicDatasetReader {
     }
     info_.distortion_model = lens.model;
     info_.distortion = lens.coefficients;
+    info_.rolling_shutter_s = lens.rolling_shutter_s;
     std::vector<ListEntry> rgb, depth;
     if (!read_list(dir + "/rgb.txt", &rgb, error) ||
         !read_list(dir + "/depth.txt", &depth, error)) {

@@ -379,6 +379,9 @@ int main(int argc, char** argv) {
     if (!loaded) return fail(error);
     tracking_config = *loaded;
   }
+  // The camera's rolling shutter is a property of the sensor: its file's value wins (as dqo_track).
+  if (info.rolling_shutter_s > 0.0)
+    tracking_config.tracker.rolling_shutter.readout_s = info.rolling_shutter_s;
   run_params.keyframes = tracking_config.mapping_keyframes;
   if (poses == "track") {
     dqo::system::add_tracking_stage(tracking_config, info.camera, has_gt_poses, &stages);

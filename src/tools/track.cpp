@@ -177,6 +177,9 @@ int main(int argc, char** argv) {
 
   // Bit-identical output for the same input on any machine load (local BA at fixed points).
   config.tracker.local_ba.deterministic = true;
+  // The camera's rolling shutter is a property of the sensor: its file's value wins.
+  if (dataset->info().rolling_shutter_s > 0.0)
+    config.tracker.rolling_shutter.readout_s = dataset->info().rolling_shutter_s;
   dqo::tracking::TrackingSession session(config);
   dqo::Trajectory estimate, ground_truth;
   std::vector<double> ms;

@@ -17,7 +17,6 @@ constexpr int kHalfPatch = 15;
 // compute() drops nearer ones), and FAST's circle needs 3 pixels more around the search area.
 constexpr int kEdge = 19;
 constexpr int kFastRadius = 3;
-constexpr int kSearchCellPx = 16;
 
 // The steepest one-sided change of depth from (x, y) to its four neighbours `step` pixels away,
 // per pixel; a neighbour without depth counts as a 10 % jump (a hole beside a keypoint usually
@@ -266,7 +265,7 @@ void OrbExtractor::extract_grey(const cv::Mat& grey, const DepthImage* depth, Or
       out->descriptors.push_back(d);
     }
   }
-  out->grid.build(out->keypoints, grey.cols, grey.rows, kSearchCellPx);
+  out->grid.build(out->keypoints, grey.cols, grey.rows, kKeypointGridCellPx);
 }
 
 }  // namespace dqo::tracking

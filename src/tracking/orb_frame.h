@@ -60,6 +60,8 @@ struct ScalePyramid {
   int predict_level(float distance, float max_distance) const;
 };
 
+constexpr int kKeypointGridCellPx = 16;  // the side of OrbFrame::grid's cells (level-0 pixels)
+
 // Keypoint indices bucketed in square cells of the level-0 image, for window queries.
 class KeypointGrid {
  public:

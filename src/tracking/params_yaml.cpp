@@ -128,6 +128,12 @@ Section schema(TrackingConfig& c) {
                                   {"final_global_ba", &t.loop.final_global_ba},
                               },
                               {}},
+                      Section{"rolling_shutter",
+                              {
+                                  {"readout_s", &t.rolling_shutter.readout_s, 0.0, 1.0},
+                                  {"max_step_s", &t.rolling_shutter.max_step_s, 0.0, kInf},
+                              },
+                              {}},
                       Section{"refine",
                               {
                                   {"enabled", &t.refine.enabled},

@@ -12,6 +12,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "relocaliser.h"
+#include "rolling_shutter.h"
 #include "tracker_impl.h"
 
 namespace dqo::tracking {
@@ -84,6 +85,15 @@ TrackResult Tracker::Impl::track(const RgbdInput& input) {
   frame.timestamp = input.timestamp;
   if (params_.use_features) extractor_.extract(*input.rgb, *input.depth, &frame.features);
   if (depth_asynchronous_) mark_asynchronous_depth(&frame);
+  // A rolling shutter's rows moved to the stamp's instant by the motion model (rolling_shutter.h),
+  // where its velocity describes the motion during this frame's readout.
+  const RollingShutterParams& shutter = params_.rolling_shutter;
+  if (shutter.readout_s > 0.0 && params_.use_features && has_velocity_ && last_ &&
+      velocity_dt_ > 0.0 && velocity_dt_ <= shutter.max_step_s &&
+      input.timestamp - last_->timestamp <= shutter.max_step_s) {
+    compensate_rolling_shutter(camera_, velocity_.log() / velocity_dt_, shutter.readout_s,
+                               &frame.features);
+  }
   frame.map_points.assign(frame.features.size(), kNoId);
   // Two pyramids, swapped every frame: their buffers are reused (no allocation per frame).
   const RgbdPyramid* pyramid = nullptr;
@@ -375,6 +385,7 @@ void Tracker::Impl::finish_frame(TrackedFrame* frame, const SE3& T_wc, bool upda
   frame->T_wc = T_wc;
   if (update_velocity && last_) {
     velocity_ = last_->T_wc.inverse() * T_wc;
+    velocity_dt_ = frame->timestamp - last_->timestamp;
     has_velocity_ = true;
   }
   frame->reference_keyframe = reference_keyframe_;

@@ -160,6 +160,7 @@ struct Tracker::Impl {
   bool anchor_odometry_valid_ = false;
   uint64_t anchor_keyframe_ = 0;
   SE3 velocity_;  // T_last_cur of the last tracked step
+  double velocity_dt_ = 0.0;  // its duration (s)
   bool has_velocity_ = false;
 
   uint64_t first_keyframe_ = kNoId;  // the world frame: fixed in every adjustment

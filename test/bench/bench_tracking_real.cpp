@@ -55,6 +55,7 @@ struct BenchFrame {
 struct Sequence {
   std::string name;
   dqo::PinholeCamera camera;
+  double rolling_shutter_s = 0.0;  // the camera file's (0: a global shutter, the simulator)
   std::vector<BenchFrame> frames;
 };
 
@@ -96,6 +97,7 @@ std::optional<Sequence> load_tum(const std::string& dir, const std::string& name
   Sequence s;
   s.name = name;
   s.camera = source->info().camera;
+  s.rolling_shutter_s = source->info().rolling_shutter_s;
   for (int i = 0; i < source->num_frames(); ++i) {
     auto f = source->read_frame(i, error);
     if (!f) return std::nullopt;
@@ -132,14 +134,14 @@ std::optional<Sequence> load_scene(const std::string& path, int frames, std::str
 }
 
 Sequence every_kth(const Sequence& s, int k) {
-  Sequence out{s.name + (k > 1 ? " every " + std::to_string(k) : ""), s.camera, {}};
+  Sequence out{s.name + (k > 1 ? " every " + std::to_string(k) : ""), s.camera, s.rolling_shutter_s, {}};
   for (size_t i = 0; i < s.frames.size(); i += static_cast<size_t>(k)) out.frames.push_back(s.frames[i]);
   return out;
 }
 
 // The fault starts a third of the way in.
 Sequence inject(const Sequence& s, const std::string& fault, Fault* f) {
-  Sequence out{s.name + ", " + fault, s.camera, {}};
+  Sequence out{s.name + ", " + fault, s.camera, s.rolling_shutter_s, {}};
   const double t0 = s.frames.front().t;
   const double start = t0 + (s.frames.back().t - t0) / 3.0;
   f->name = fault;
@@ -187,6 +189,7 @@ Stats run(const Sequence& s, const Fault& fault, bool verbose) {
   st.label = s.name;
   dqo::tracking::TrackerParams params;
   params.local_ba.deterministic = true;
+  params.rolling_shutter.readout_s = s.rolling_shutter_s;  // the camera file's (dqo_track's rule)
   dqo::tracking::Tracker tracker(s.camera, params);
   std::vector<dqo::eval::StampedPose> estimate, truth;
   std::vector<TrackingState> states;  // per estimate entry

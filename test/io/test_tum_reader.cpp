@@ -325,5 +325,29 @@ TEST_F(TumFixture, LensDistortionFromCameraYaml) {
   }
 }
 
+TEST_F(TumFixture, RollingShutterReadoutFromCameraYaml) {
+  const std::string pinhole = "width: 4\nheight: 3\nfx: 517.3\nfy: 516.5\ncx: 318.6\ncy: 255.3\n";
+  std::string error;
+  {
+    const auto reader = open_dataset(tmp_.path(), &error);
+    ASSERT_TRUE(reader) << error;
+    EXPECT_EQ(reader->info().rolling_shutter_s, 0.0);  // absent: a global shutter
+  }
+  test::write_text(tmp_ / "camera.yaml", pinhole + "rolling_shutter_s: 0.02\n");
+  {
+    const auto reader = open_dataset(tmp_.path(), &error);
+    ASSERT_TRUE(reader) << error;
+    EXPECT_EQ(reader->info().rolling_shutter_s, 0.02);
+    EXPECT_TRUE(reader->info().distortion_model.empty());
+  }
+  for (const std::string bad : {"rolling_shutter_s: -0.01\n", "rolling_shutter_s: 2\n"}) {
+    SCOPED_TRACE(bad);
+    test::write_text(tmp_ / "camera.yaml", pinhole + bad);
+    EXPECT_FALSE(open_dataset(tmp_.path(), &error));
+    EXPECT_NE(error.find("[0, 1] seconds"), std::string::npos) << error;
+    EXPECT_NE(error.find("camera.yaml:"), std::string::npos) << error;
+  }
+}
+
 }  // namespace
 }  // namespace dqo

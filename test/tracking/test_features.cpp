@@ -1,6 +1,7 @@
 // The feature side of the tracker: ORB extraction (spread, pyramid, depth, rotation invariance),
 // the keypoint grid, matching (projection search, descriptor matching, orientation filter), the
-// ID-keyed map store, and PnP against a keyframe on a camera rolled about its optical axis.
+// ID-keyed map store, PnP against a keyframe on a camera rolled about its optical axis, and the
+// rolling-shutter compensation of keypoints against a rolling shutter simulated here.
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -14,6 +15,7 @@
 #include "matching.h"
 #include "orb_frame.h"
 #include "relocaliser.h"
+#include "rolling_shutter.h"
 
 namespace {
 
@@ -327,6 +329,97 @@ TEST(Relocaliser, PnpRecoversARolledCamera) {
     const double w = std::min(1.0, std::abs((expected.inverse() * r.T_wc).quaternion().w()));
     EXPECT_LT(2.0 * std::acos(w) * 180.0 / M_PI, 0.3);
   }
+}
+
+// ---------------------------------------------------------------- rolling shutter
+
+using Twist = Eigen::Matrix<double, 6, 1>;
+
+// Where a rolling shutter sees p_w: on the row v whose own instant, (v - H/2) / H * readout after
+// the stamp, has the camera (moving with the body twist from T_wc at the stamp) project p_w onto
+// row v itself: a fixed point, found by iterating. Also the point's depth in that row's camera.
+struct RowObservation {
+  Eigen::Vector2d uv;
+  double z;
+};
+RowObservation observe_rolling(const PinholeCamera& c, const SE3& T_wc, const Twist& twist,
+                               double readout, const Eigen::Vector3d& p_w) {
+  double v = c.cy;
+  Eigen::Vector3d p = T_wc.inverse() * p_w;
+  for (int i = 0; i < 100; ++i) {
+    const double t = (v - 0.5 * c.height) / c.height * readout;
+    p = (T_wc * SE3::exp(t * twist)).inverse() * p_w;
+    v = c.fy * p.y() / p.z() + c.cy;
+  }
+  return {{c.fx * p.x() / p.z() + c.cx, v}, p.z()};
+}
+
+Eigen::Vector2d project(const PinholeCamera& c, const SE3& T_wc, const Eigen::Vector3d& p_w) {
+  const Eigen::Vector3d p = T_wc.inverse() * p_w;
+  return {c.fx * p.x() / p.z() + c.cx, c.fy * p.y() / p.z() + c.cy};
+}
+
+// Random points 1-3 m in front of a camera at T_wc, inside its image.
+std::vector<Eigen::Vector3d> points_in_view(const PinholeCamera& c, const SE3& T_wc, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(40.0, 600.0), v(40.0, 440.0), z(1.0, 3.0);
+  std::vector<Eigen::Vector3d> out;
+  for (int i = 0; i < 200; ++i) out.push_back(T_wc * c.back_project(u(rng), v(rng), z(rng)));
+  return out;
+}
+
+TEST(RollingShutter, KeypointsWithDepthMoveToTheGlobalShutterProjection) {
+  const PinholeCamera camera = test_camera();
+  const SE3 T_wc = SE3::exp((Twist() << 0.2, -0.1, 0.3, 0.05, -0.1, 0.02).finished());
+  // About 0.5 m/s and 45 deg/s (fr1/xyz's fastest), 30 ms from the top row to the bottom one.
+  const Twist twist = (Twist() << 0.3, -0.2, 0.35, 0.4, -0.6, 0.3).finished();
+  const double readout = 0.03;
+  OrbFrame frame;
+  std::vector<Eigen::Vector2d> global;
+  for (const Eigen::Vector3d& p_w : points_in_view(camera, T_wc, 7)) {
+    const RowObservation seen = observe_rolling(camera, T_wc, twist, readout, p_w);
+    Keypoint k;
+    k.uv = seen.uv.cast<float>();
+    k.depth = static_cast<float>(seen.z);
+    frame.keypoints.push_back(k);
+    global.push_back(project(camera, T_wc, p_w));
+  }
+  double before = 0.0, after = 0.0;
+  for (size_t i = 0; i < global.size(); ++i)
+    before = std::max(before, (frame.keypoints[i].uv.cast<double>() - global[i]).norm());
+  const std::vector<Keypoint> raw = frame.keypoints;
+  compensate_rolling_shutter(camera, twist, readout, &frame);
+  for (size_t i = 0; i < global.size(); ++i) {
+    after = std::max(after, (frame.keypoints[i].uv.cast<double>() - global[i]).norm());
+    EXPECT_EQ(frame.keypoints[i].depth, raw[i].depth);  // the depth camera has no rows
+  }
+  EXPECT_GT(before, 5.0);  // the shutter matters at this speed ...
+  EXPECT_LT(after, 2e-3);  // ... and is undone exactly where the depth is known
+  // The grid follows the moved keypoints.
+  std::vector<int> found;
+  frame.grid.query(frame.keypoints, frame.keypoints[0].uv, 0.5f, 0, -1, &found);
+  EXPECT_NE(std::find(found.begin(), found.end(), 0), found.end());
+}
+
+TEST(RollingShutter, WithoutDepthARotationIsUndoneAndNoReadoutChangesNothing) {
+  const PinholeCamera camera = test_camera();
+  const SE3 T_wc;
+  const Twist turn = (Twist() << 0.0, 0.0, 0.0, 0.5, 0.7, -0.2).finished();  // rotation alone
+  OrbFrame frame;
+  std::vector<Eigen::Vector2d> global;
+  for (const Eigen::Vector3d& p_w : points_in_view(camera, T_wc, 11)) {
+    Keypoint k;  // depth 0: none
+    k.uv = observe_rolling(camera, T_wc, turn, 0.03, p_w).uv.cast<float>();
+    frame.keypoints.push_back(k);
+    global.push_back(project(camera, T_wc, p_w));
+  }
+  OrbFrame unchanged = frame;
+  compensate_rolling_shutter(camera, turn, 0.0, &unchanged);
+  for (size_t i = 0; i < global.size(); ++i)
+    EXPECT_EQ(unchanged.keypoints[i].uv, frame.keypoints[i].uv);
+  compensate_rolling_shutter(camera, turn, 0.03, &frame);
+  for (size_t i = 0; i < global.size(); ++i)
+    EXPECT_LT((frame.keypoints[i].uv.cast<double>() - global[i]).norm(), 2e-3) << i;
 }
 
 }  // namespace

@@ -66,6 +66,9 @@ struct DatasetInfo {
   // (tracking/rectified_frame_source.h), as tracking_node does with a CameraInfo's D.
   std::string distortion_model;
   std::vector<double> distortion;
+  // The colour sensor's rolling-shutter readout (camera.yaml's rolling_shutter_s; 0: a global
+  // shutter): the tracker compensates it (TrackerParams::rolling_shutter).
+  double rolling_shutter_s = 0.0;
   double depth_scale = 1000.0;            // stored uint16 value per metre
   std::map<int, std::string> class_names; // class ID -> name
   std::vector<GtObject> objects;          // empty when the dataset has no object ground truth

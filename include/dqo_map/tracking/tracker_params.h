@@ -217,6 +217,22 @@ struct ObjectLandmarkParams {
   double min_iou = 0.3;
 };
 
+// A rolling-shutter colour camera (tracking/rolling_shutter.h): its rows are exposed one after
+// the other over readout_s (top to bottom), the stamp taken as the middle row's instant. Each
+// frame's keypoints are moved to where a global shutter at the stamp would have seen them, the
+// camera's motion taken from the motion model (the last step's constant velocity). 0: a global
+// shutter (the simulator; the default). TUM fr1's Kinect v1: 0.02 s (a sweep of 0.01-0.04 s on
+// fr1/xyz and fr1/desk, best at 0.02-0.025; BENCHMARKS.md, issue 25, session 16), which
+// config/cameras/tum_fr1.yaml gives as the camera's rolling_shutter_s.
+struct RollingShutterParams {
+  double readout_s = 0.0;
+  // The velocity of a step longer than this (sparse frames, a gap) says too little about the
+  // motion during one frame's readout: such frames are left as they are. Compensated, fr1/desk at
+  // every 10th frame (0.33 s steps) had a pose 5.4 cm off, at every 3rd (0.1 s) ATE 2.00 -> 2.37
+  // cm and a pose 5.9 cm off; at every 2nd (0.064-0.069 s) it gains (1.64 -> 1.19 cm).
+  double max_step_s = 0.08;
+};
+
 struct TrackerParams {
   OrbParams orb;
   DenseParams dense;
@@ -229,6 +245,7 @@ struct TrackerParams {
   SearchParams search;
   QualityParams quality;
   ObjectLandmarkParams objects;
+  RollingShutterParams rolling_shutter;
   bool use_dense = true;        // fuse dense depth alignment with the features
   bool use_features = true;
   int min_inliers_ok = 15;      // below: this frame's tracking failed
