@@ -67,6 +67,7 @@ constexpr char kUsage[] =
     "                       [--objects-config objects.yaml] [--max-gaussians N] [--threads T]\n"
     "                       [--no-noise] [--no-meshes] [--background-mesh] [--map FILE] [--preload]\n"
     "                       [--one-thread] [--overlays DIR] [--quiet] [--detector-profile kind|real]\n"
+    "                       [--camera camera.yaml]\n"
     "  INPUT              a dataset folder (own format, TUM RGB-D, Replica) or a scene YAML\n"
     "                     (rendered in memory, with its sensor noise unless --no-noise)\n"
     "  --detector-profile P  scene YAMLs: the simulated detector behaves as profile P whatever\n"
@@ -74,6 +75,8 @@ constexpr char kUsage[] =
     "                     30 % of labels flipped within the scene's confusion groups, 10 % false\n"
     "                     positives, half on fixed clutter spots); config/scenes/README.md\n"
     "  --out DIR          output folder (created)\n"
+    "  --camera FILE      a TUM sequence's intrinsics, distortion and rolling shutter from FILE, not\n"
+    "                     its camera.yaml (e.g. config/cameras/tum_fr1.yaml), as dqo_track takes it\n"
     "  --poses gt         the input's ground-truth poses (default where it has them)\n"
     "  --poses track      the tracker's (default without ground truth)\n"
     "  --poses FILE       a TUM trajectory matched by timestamp (e.g. dqo_track's)\n"
@@ -121,6 +124,7 @@ int fail(const std::string& message) {
 struct Options {
   std::string input, out, poses, labels, backend, config, tracking_config, objects_config, map;
   std::string overlays;  // empty: none
+  std::string camera;    // --camera: a TUM sequence's camera file in place of its camera.yaml
   double scale = 1.0;
   int frames = -1, every = 1, max_gaussians = -1, threads = 0;
   bool noise = true, meshes = true, background_mesh = false, quiet = false, preload = false;
@@ -213,6 +217,8 @@ int parse_options(int argc, char** argv, Options* out) {
         o.tracking_config = v;
       } else if (a == "--objects-config") {
         o.objects_config = v;
+      } else if (a == "--camera") {
+        o.camera = v;
       } else if (a == "--detector-profile") {
         o.scene_overrides.detector_profile = dqo::sim::detector_profile_from_name(v);
         if (!o.scene_overrides.detector_profile) {
@@ -247,6 +253,9 @@ int parse_options(int argc, char** argv, Options* out) {
   if (!o.labels.empty() && o.labels != "masks" && o.labels != "quadrics" && o.labels != "none") {
     return usage_error("--labels must be masks, quadrics or none, not '" + o.labels + "'");
   }
+  if (!o.camera.empty() && is_scene_yaml(o.input)) {
+    return usage_error("--camera is for TUM sequences (a scene YAML has its own camera)");
+  }
   if (o.scene_overrides.detector_profile && !is_scene_yaml(o.input)) {
     return usage_error("--detector-profile is for scene YAMLs (the synthetic world's detector)");
   }
@@ -273,8 +282,14 @@ std::shared_ptr<const dqo::FrameSource> open_input(const Options& o, std::string
                                                         o.threads);
   }
 #ifdef DQO_FULL_PIPELINE
-  auto reader = dqo::open_dataset(o.input, error);
+  dqo::DatasetReaderParams reader_params;
+  reader_params.tum.camera_file = o.camera;
+  auto reader = dqo::open_dataset(o.input, reader_params, error);
   if (!reader) return nullptr;
+  if (!o.camera.empty() && reader->format() != "tum") {
+    *error = "--camera applies to TUM sequences only (" + o.input + " is " + reader->format() + ")";
+    return nullptr;
+  }
   *kind = reader->format() + " dataset";
   if (!reader->info().distortion_model.empty()) *kind += ", " + reader->info().distortion_model + " undistorted";
   // Lens distortion comes off first, as tracking_node does it: the rest assumes a pinhole camera.
