@@ -184,9 +184,7 @@ dqo_map::KeyFrameObjects to_keyframe_objects_msg(const objects::KeyFrameAssociat
   return msg;
 }
 
-std_msgs::ColorRGBA colour_of_id(objects::ObjectId id) {
-  // The object overlay's colour, so that an object looks the same in rviz and in the overlay image.
-  const objects::Rgb rgb = objects::overlay_colour(id);
+std_msgs::ColorRGBA to_rgba(const objects::Rgb& rgb) {
   std_msgs::ColorRGBA c;
   c.r = rgb[0] / 255.0f;
   c.g = rgb[1] / 255.0f;
@@ -195,10 +193,14 @@ std_msgs::ColorRGBA colour_of_id(objects::ObjectId id) {
   return c;
 }
 
+std_msgs::ColorRGBA colour_of_id(objects::ObjectId id) { return to_rgba(objects::overlay_colour(id)); }
+
 visualization_msgs::MarkerArray to_marker_array(const std::vector<objects::MapObject>& objects,
                                                 const std::vector<objects::ObjectId>& deleted,
                                                 const std_msgs::Header& header) {
   visualization_msgs::MarkerArray out;
+  // The object overlay's palette of the same objects: an object has one colour in both.
+  const objects::ObjectPalette palette = objects::palette_of_confirmed(objects);
   for (const objects::MapObject& o : objects) {
     if (!o.has_quadric) continue;
     const dqo_map::Object obj = to_object_msg(o);
@@ -213,7 +215,7 @@ visualization_msgs::MarkerArray to_marker_array(const std::vector<objects::MapOb
     m.scale.x = 2.0 * obj.semi_axes.x;
     m.scale.y = 2.0 * obj.semi_axes.y;
     m.scale.z = 2.0 * obj.semi_axes.z;
-    m.color = colour_of_id(o.id);
+    m.color = to_rgba(palette.colour(o.id));
     m.color.a = 0.5f;  // see-through, so the Gaussians / point cloud inside stay visible
     out.markers.push_back(m);
 
@@ -228,7 +230,7 @@ visualization_msgs::MarkerArray to_marker_array(const std::vector<objects::MapOb
     // Above the ellipsoid whatever its orientation: the largest semi-axis bounds its extent.
     t.pose.position.z += o.quadric.semi_axes().maxCoeff() + 0.05;
     t.scale.z = 0.08;  // text height, metres
-    t.color = colour_of_id(o.id);
+    t.color = to_rgba(palette.colour(o.id));
     t.text = std::to_string(o.id) + " " + o.class_name;
     out.markers.push_back(t);
   }

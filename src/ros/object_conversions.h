@@ -65,7 +65,8 @@ dqo_map::KeyFrameObjects to_keyframe_objects_msg(const objects::KeyFrameAssociat
 visualization_msgs::MarkerArray to_marker_array(const std::vector<objects::MapObject>& objects,
                                                 const std::vector<objects::ObjectId>& deleted,
                                                 const std_msgs::Header& header);
-// A stable, well-spread colour per ID (golden-ratio hue steps), components in [0, 1].
+// A stable, well-spread colour per ID (golden-ratio hue steps: objects::overlay_colour), components
+// in [0, 1]. The markers take the colours of objects::palette_of_confirmed of their objects.
 std_msgs::ColorRGBA colour_of_id(objects::ObjectId id);
 
 }  // namespace dqo::ros_bridge

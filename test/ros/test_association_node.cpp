@@ -583,11 +583,15 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
       EXPECT_EQ(img.height, kf.rgb.height);
       ASSERT_EQ(img.data.size(), static_cast<size_t>(img.step) * img.height);
       int centres = 0;
+      // The overlay's palette: the confirmed objects' IDs (those of the final array).
+      std::vector<dqo::objects::ObjectId> ids;
+      for (const auto& o : final_array.objects) ids.push_back(o.id);
+      const dqo::objects::ObjectPalette palette(ids);
       for (const auto& o : final_array.objects) {
         const auto c = conic_centre(o, kf);
         if (!c || c->x() < 0 || c->y() < 0 || c->x() >= img.width || c->y() >= img.height) continue;
         ++centres;
-        EXPECT_TRUE(drawn_near(img, c->x(), c->y(), 2, dqo::objects::overlay_colour(o.id)))
+        EXPECT_TRUE(drawn_near(img, c->x(), c->y(), 2, palette.colour(o.id)))
             << "object " << o.id << ": no dot at its conic centre " << c->transpose();
       }
       EXPECT_GT(centres, 0) << "no object in view of the last keyframe";
@@ -595,7 +599,7 @@ TEST_F(AssociationNodeTest, ObjectsIdsOutputsAndBadInput) {
       ASSERT_FALSE(m.detections.detections.empty());
       for (size_t k = 0; k < m.detections.detections.size(); ++k) {
         const auto& d = m.detections.detections[k];
-        const auto colour = m.object_ids[k] ? dqo::objects::overlay_colour(m.object_ids[k]) : dqo::objects::kUnmatchedColour;
+        const auto colour = m.object_ids[k] ? palette.colour(m.object_ids[k]) : dqo::objects::kUnmatchedColour;
         const double xm = 0.5 * (d.x_min + d.x_max), ym = 0.5 * (d.y_min + d.y_max);
         // Another box or a label may cover one edge: one of the four is enough.
         EXPECT_TRUE(drawn_near(img, d.x_min, ym, 1, colour) || drawn_near(img, d.x_max, ym, 1, colour) ||

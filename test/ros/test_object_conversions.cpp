@@ -216,7 +216,12 @@ TEST(ObjectConversions, Markers) {
     EXPECT_EQ(t.type, visualization_msgs::Marker::TEXT_VIEW_FACING);
     EXPECT_EQ(t.text, std::to_string(objs[i].id) + " " + objs[i].class_name);
     EXPECT_GT(t.pose.position.z, s.pose.position.z);
-    EXPECT_EQ(s.color.r, colour_of_id(objs[i].id).r);
+    // The object overlay's palette of the same objects (one colour per object in both).
+    const objects::Rgb drawn = objects::palette_of_confirmed(objs).colour(objs[i].id);
+    EXPECT_NEAR(s.color.r * 255.0f, drawn[0], 1e-3);
+    EXPECT_NEAR(s.color.g * 255.0f, drawn[1], 1e-3);
+    EXPECT_NEAR(s.color.b * 255.0f, drawn[2], 1e-3);
+    EXPECT_EQ(t.color.r, s.color.r);
   }
   EXPECT_EQ(arr.markers[4].action, visualization_msgs::Marker::DELETE);
   EXPECT_EQ(arr.markers[4].id, 9);

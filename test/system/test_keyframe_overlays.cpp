@@ -6,6 +6,8 @@
 
 #include <stdlib.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -50,6 +52,45 @@ std::vector<Box2d> placed_rects(const std::vector<PlacedLabel>& placed) {
     if (p.rect.valid()) out.push_back(p.rect);
   }
   return out;
+}
+
+// Circular hue distance, computed here apart from the palette's own.
+double hue_gap(double a, double b) {
+  const double d = std::abs(a - b);
+  return std::min(d, 1.0 - d);
+}
+
+TEST(ObjectPalette, ObjectsOfOneMapGetHuesApartAndLowerIdsKeepTheirs) {
+  using objects::ObjectId;
+  // The demo's bottle #4 and cup #17: golden-ratio hues 0.034 apart (two blues).
+  const double golden4 = std::fmod(0.1 + 0.618033988749895 * 4, 1.0);
+  const double golden17 = std::fmod(0.1 + 0.618033988749895 * 17, 1.0);
+  ASSERT_LT(hue_gap(golden4, golden17), 0.04);
+  const objects::ObjectPalette demo({17, 4, 2, 5});
+  EXPECT_GE(hue_gap(demo.hue(4), demo.hue(17)), objects::ObjectPalette::kMinHueGap);
+  EXPECT_DOUBLE_EQ(demo.hue(4), golden4);  // the lower ID keeps its own
+  EXPECT_EQ(demo.colour(4), objects::overlay_colour(4));
+  EXPECT_NE(demo.colour(17), objects::overlay_colour(17));
+
+  // A room's worth of scattered IDs: every pair at least the gap apart.
+  std::mt19937 rng(7);
+  std::vector<ObjectId> ids;
+  for (int k = 0; k < 12; ++k) ids.push_back(1 + rng() % 120);
+  const objects::ObjectPalette room(ids);
+  for (size_t a = 0; a < ids.size(); ++a) {
+    for (size_t b = 0; b < ids.size(); ++b) {
+      if (ids[a] == ids[b]) continue;
+      EXPECT_GE(hue_gap(room.hue(ids[a]), room.hue(ids[b])), objects::ObjectPalette::kMinHueGap - 1e-12)
+          << ids[a] << " and " << ids[b];
+    }
+  }
+  // Objects added later never change the colours of those with lower IDs.
+  std::vector<ObjectId> more = ids;
+  for (ObjectId id = 121; id < 126; ++id) more.push_back(id);
+  const objects::ObjectPalette later(more);
+  for (const ObjectId id : ids) EXPECT_DOUBLE_EQ(later.hue(id), room.hue(id)) << id;
+  // An ID outside the palette: its own colour.
+  EXPECT_EQ(room.colour(999), objects::overlay_colour(999));
 }
 
 TEST(LabelPlacement, ALoneBoxIsLabelledAboveAndAtTheTopEdgeBelow) {

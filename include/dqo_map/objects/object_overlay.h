@@ -9,6 +9,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dqo_map/common/image.h"
@@ -32,6 +33,29 @@ using Rgb = std::array<uint8_t, 3>;
 // that became no object.
 Rgb overlay_colour(ObjectId id);
 constexpr Rgb kUnmatchedColour = {255, 255, 255};
+
+// Colours that tell the objects of one map apart. Golden-ratio hues keep neighbouring IDs apart
+// but not all: IDs 13 or 21 apart land within 0.035 of each other's hue (two blues on the demo,
+// #4 and #17). Here each object keeps its overlay_colour unless an object with a lower ID already
+// has a hue within kMinHueGap; it then takes the nearest hue that has none (steps of kHueStep,
+// either way). Lower IDs never change colour when objects are added; an ID not in the palette
+// gets its overlay_colour. The object overlay and the rviz markers build it from the same
+// confirmed objects, so an object has one colour in both.
+class ObjectPalette {
+ public:
+  ObjectPalette() = default;
+  explicit ObjectPalette(std::vector<ObjectId> ids);
+  Rgb colour(ObjectId id) const;
+  double hue(ObjectId id) const;  // in [0, 1)
+
+  static constexpr double kMinHueGap = 0.06;
+  static constexpr double kHueStep = 0.01;
+
+ private:
+  std::vector<std::pair<ObjectId, double>> hues_;  // sorted by ID
+};
+// The palette of the confirmed objects among `objects` (candidates keep their overlay_colour).
+ObjectPalette palette_of_confirmed(const std::vector<MapObject>& objects);
 
 // ---- Label placement -------------------------------------------------------------------------
 
@@ -67,6 +91,7 @@ std::vector<PlacedLabel> place_labels(const std::vector<LabelRequest>& labels, i
 struct OverlayLayout {
   struct Ellipse {
     ObjectId id = 0;
+    Rgb colour = kUnmatchedColour;
     bool confirmed = true;  // false: a candidate (thin, dashed)
     Ellipse2d ellipse;
     bool centre_in_image = false;

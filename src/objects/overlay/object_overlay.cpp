@@ -84,9 +84,12 @@ void draw_dashed_ellipse(cv::Mat* image, const Ellipse2d& e, const cv::Scalar& c
 
 }  // namespace
 
-Rgb overlay_colour(ObjectId id) {
-  const double hue = std::fmod(0.1 + 0.618033988749895 * static_cast<double>(id), 1.0);
-  // HSV with full saturation and value: bright on the dark outline of labels.
+namespace {
+
+double golden_hue(ObjectId id) { return std::fmod(0.1 + 0.618033988749895 * static_cast<double>(id), 1.0); }
+
+// HSV with full saturation and value: bright on the dark outline of labels.
+Rgb hue_colour(double hue) {
   const double h6 = hue * 6.0;
   const int sector = static_cast<int>(h6) % 6;
   const double f = h6 - std::floor(h6);
@@ -100,6 +103,52 @@ Rgb overlay_colour(ObjectId id) {
     case 4: return {up, 0, 255};
     default: return {255, 0, down};
   }
+}
+
+double hue_distance(double a, double b) {
+  const double d = std::fabs(a - b);
+  return std::min(d, 1.0 - d);
+}
+
+}  // namespace
+
+Rgb overlay_colour(ObjectId id) { return hue_colour(golden_hue(id)); }
+
+ObjectPalette::ObjectPalette(std::vector<ObjectId> ids) {
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  const int max_steps = static_cast<int>(0.5 / kHueStep);
+  for (const ObjectId id : ids) {
+    const double own = golden_hue(id);
+    double chosen = own;  // where every hue is taken (many objects), the own one
+    for (int k = 0; k <= 2 * max_steps; ++k) {
+      const double offset = ((k + 1) / 2) * kHueStep * (k % 2 == 1 ? 1.0 : -1.0);  // 0, +1, -1, +2, ...
+      const double h = std::fmod(own + offset + 1.0, 1.0);
+      const bool free = std::all_of(hues_.begin(), hues_.end(), [&](const std::pair<ObjectId, double>& t) {
+        return hue_distance(h, t.second) >= kMinHueGap;
+      });
+      if (free) {
+        chosen = h;
+        break;
+      }
+    }
+    hues_.emplace_back(id, chosen);
+  }
+}
+
+double ObjectPalette::hue(ObjectId id) const {
+  const auto it = std::lower_bound(hues_.begin(), hues_.end(), id,
+                                   [](const std::pair<ObjectId, double>& e, ObjectId v) { return e.first < v; });
+  return it != hues_.end() && it->first == id ? it->second : golden_hue(id);
+}
+
+Rgb ObjectPalette::colour(ObjectId id) const { return hue_colour(hue(id)); }
+
+ObjectPalette palette_of_confirmed(const std::vector<MapObject>& objects) {
+  std::vector<ObjectId> ids;
+  for (const MapObject& o : objects)
+    if (o.state == ObjectState::kConfirmed) ids.push_back(o.id);
+  return ObjectPalette(std::move(ids));
 }
 
 std::vector<PlacedLabel> place_labels(const std::vector<LabelRequest>& labels, int image_width,
@@ -190,6 +239,7 @@ OverlayLayout layout_object_overlay(const PinholeCamera& camera, const SE3& T_wc
   };
 
   std::map<ObjectId, bool> confirmed;
+  const ObjectPalette palette = palette_of_confirmed(objects);
   // Confirmed objects' labels before candidates': when space runs out, a candidate's goes first.
   for (const bool want_confirmed : {true, false}) {
     for (const MapObject& o : objects) {
@@ -204,6 +254,7 @@ OverlayLayout layout_object_overlay(const PinholeCamera& camera, const SE3& T_wc
       if (!extent.valid()) continue;  // wholly outside the image
       OverlayLayout::Ellipse el;
       el.id = o.id;
+      el.colour = palette.colour(o.id);
       el.confirmed = is_confirmed;
       el.ellipse = *e;
       el.centre_in_image = e->centre.x() >= 0 && e->centre.y() >= 0 && e->centre.x() < width &&
@@ -214,9 +265,9 @@ OverlayLayout layout_object_overlay(const PinholeCamera& camera, const SE3& T_wc
       if (el.centre_in_image) {
         const Box2d mark{e->centre.x() - kPointMark, e->centre.y() - kPointMark,
                          e->centre.x() + kPointMark, e->centre.y() + kPointMark};
-        add_label(std::move(text), overlay_colour(o.id), LabelRequest::Anchor::kPoint, mark);
+        add_label(std::move(text), el.colour, LabelRequest::Anchor::kPoint, mark);
       } else {
-        add_label(std::move(text), overlay_colour(o.id), LabelRequest::Anchor::kBox, extent);
+        add_label(std::move(text), el.colour, LabelRequest::Anchor::kBox, extent);
       }
     }
   }
@@ -224,7 +275,7 @@ OverlayLayout layout_object_overlay(const PinholeCamera& camera, const SE3& T_wc
     if (!d.box.valid()) continue;
     OverlayLayout::Box b;
     b.box = d.box;
-    b.colour = d.object_id != 0 ? overlay_colour(d.object_id) : kUnmatchedColour;
+    b.colour = d.object_id != 0 ? palette.colour(d.object_id) : kUnmatchedColour;
     const auto it = confirmed.find(d.object_id);
     b.solid = d.object_id == 0 || it == confirmed.end() || it->second;
     layout.boxes.push_back(b);
@@ -247,7 +298,7 @@ ImageRgb8 draw_object_overlay(const ImageRgb8& rgb, const PinholeCamera& camera,
   const OverlayLayout layout = layout_object_overlay(camera, T_wc, detections, objects);
 
   for (const OverlayLayout::Ellipse& el : layout.ellipses) {
-    const cv::Scalar colour = scalar(overlay_colour(el.id));
+    const cv::Scalar colour = scalar(el.colour);
     if (el.confirmed) {
       cv::ellipse(image, cv::Point2d(el.ellipse.centre.x(), el.ellipse.centre.y()),
                   cv::Size2d(el.ellipse.semi_axes(0), el.ellipse.semi_axes(1)),
@@ -262,7 +313,7 @@ ImageRgb8 draw_object_overlay(const ImageRgb8& rgb, const PinholeCamera& camera,
   }
   for (const OverlayLayout::Ellipse& el : layout.ellipses) {
     if (el.centre_in_image) {
-      cv::circle(image, pixel(el.ellipse.centre), el.confirmed ? 3 : 2, scalar(overlay_colour(el.id)),
+      cv::circle(image, pixel(el.ellipse.centre), el.confirmed ? 3 : 2, scalar(el.colour),
                  cv::FILLED, cv::LINE_8);
     }
   }
