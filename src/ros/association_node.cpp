@@ -45,6 +45,7 @@
 #include "object_conversions.h"
 #include "object_ros_params.h"
 #include "ros_params.h"
+#include "sim_clock_watch.h"
 
 namespace dqo::ros_bridge {
 namespace {
@@ -112,7 +113,7 @@ class AssociationNode {
   ros::Publisher diag_pub_;
   ros::WallTimer diag_timer_;
   ros::WallTime started_ = ros::WallTime::now(), last_keyframe_, last_detections_;
-  ros::Time time_at_last_diagnostics_;  // unchanged under sim time: /clock stopped (a bag ended)
+  SimClockWatch clock_;  // a bag's stopped /clock, seen from the diagnostics timer
   uint64_t keyframes_processed_ = 0, keyframes_without_detections_ = 0, detection_arrays_ = 0;
 };
 
@@ -233,9 +234,7 @@ void AssociationNode::publish_diagnostics(const ros::WallTimerEvent&) {
   auto since = [&](const ros::WallTime& t) { return (now - (t.isZero() ? started_ : t)).toSec(); };
   const double no_keyframes = since(last_keyframe_);
   const double no_detections = since(last_detections_);
-  const ros::Time ros_now = ros::Time::now();
-  const bool clock_stopped = ros::Time::isSimTime() && ros_now == time_at_last_diagnostics_;
-  time_at_last_diagnostics_ = ros_now;
+  const bool clock_stopped = clock_.stopped();
   diagnostic_msgs::DiagnosticStatus status;
   status.name = "dqo_map: association";
   status.hardware_id = "dqo_map";

@@ -60,6 +60,7 @@
 #include "dqo_map/tracking/undistortion.h"
 #include "replay_tf_listener.h"
 #include "ros_params.h"
+#include "sim_clock_watch.h"
 
 namespace dqo::ros_bridge {
 namespace {
@@ -158,7 +159,7 @@ class TrackingNode {
   // Arrival times (wall clock) per input topic and of the last synchronised frame.
   ros::WallTime last_rgb_, last_depth_, last_info_, last_frame_;
   ros::WallTime started_ = ros::WallTime::now();
-  ros::Time time_at_last_check_;  // ROS time at the last check without input (unchanged: /clock stopped)
+  SimClockWatch clock_;  // a bag's stopped /clock, seen from the input checks
   bool bag_end_said_ = false;
   std::map<std::string, ros::WallTime> last_complaint_;
   std::string tf_child_;  // the frame map's edge goes to, once known
@@ -413,9 +414,7 @@ void TrackingNode::check_inputs(const ros::WallTimerEvent&) {
 // synchroniser is silent and the state stays what it was (not_initialised before the first frame),
 // so say it in the log and as a WARN on /diagnostics, where a robot's monitor looks.
 void TrackingNode::warn_no_input(const ros::WallTime& now) {
-  const ros::Time ros_now = ros::Time::now();
-  const bool clock_moved = ros_now != time_at_last_check_;
-  time_at_last_check_ = ros_now;
+  const bool clock_stopped_now = clock_.stopped();
   if (p_.no_input_warn <= 0.0) return;
   const ros::WallTime last = std::max({last_rgb_, last_depth_, last_info_, started_});
   const double quiet = (now - last).toSec();
@@ -424,7 +423,7 @@ void TrackingNode::warn_no_input(const ros::WallTime& now) {
   const bool never = last_rgb_.isZero() && last_depth_.isZero() && last_info_.isZero();
   // A bag that ended (or is paused) stops the clock with its images: say that once, not a WARN a
   // minute for as long as mapping goes on after it.
-  const bool clock_stopped = ros::Time::isSimTime() && !never && !clock_moved;
+  const bool clock_stopped = !never && clock_stopped_now;
   char text[512];
   std::snprintf(text, sizeof(text), "no images for %.0f s%s on %s%s", quiet, never ? " (none yet)" : "",
                 topics.c_str(), clock_stopped ? " (the clock stopped too: a bag that ended or is paused)" : "");
